@@ -1,0 +1,11 @@
+//! `radiosity`: diffuse global illumination for glTF scenes.
+//!
+//! The pipeline (DESIGN.md §1): [`scene`] (CPU truth) → [`mesh`] (patches and elements) →
+//! [`accel`] (BVH, occlusion) → [`solver`] (form factors, methods, `Solver::step`). The core
+//! has no GUI or GPU dependency; `cli` drives it from the command line.
+
+pub mod accel;
+pub mod mesh;
+pub mod pipeline;
+pub mod scene;
+pub mod solver;

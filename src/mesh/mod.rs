@@ -1,0 +1,498 @@
+//! Discretisation of a [`Scene`] into patches (shooters) and elements (receivers).
+//!
+//! Substructuring (Cohen, Greenberg, Immel & Brock, "An efficient radiosity approach for
+//! realistic image synthesis", 1986): each input triangle is cut into *patches* by
+//! longest-edge bisection until no edge exceeds the patch size (so slivers become chains of
+//! short patches instead of huge quadtrees), and each patch is the root of a quadtree of
+//! *elements* made by midpoint subdivision. Patches shoot light, elements receive it;
+//! the leaves of a patch's quadtree are stored contiguously so `Patch::elements` is a range.
+//!
+//! Geometry is re-centred: `Mesh::origin` (f64, world) is subtracted from every position
+//! before it is stored in f32, so a kilometre-sized scene a thousand kilometres from the
+//! origin keeps millimetre precision.
+//!
+//! Double-sided materials give two patches per piece of surface, one per side, each with its
+//! own radiosity; single-sided ones give one, on the front (counter-clockwise) side.
+
+mod display;
+
+pub use display::{DisplayMesh, Reconstruction};
+
+use crate::scene::Scene;
+use glam::{DVec3, Vec3};
+use std::ops::Range;
+
+/// How finely to mesh. `element_size` wins over `max_elements`; with neither, the element
+/// size is chosen so that the mesh has about [`DEFAULT_ELEMENTS`] elements (or one element
+/// per patch for scenes with more triangles than that).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshSettings {
+    /// Target element size in metres: an element's `sqrt(2·area)` (the leg of a right
+    /// isosceles triangle of the same area) is at most this.
+    pub element_size: Option<f64>,
+    /// Upper bound on the number of elements when `element_size` is not given.
+    pub max_elements: Option<usize>,
+}
+
+/// Default element budget: enough for visibly smooth Cornell-box lighting while keeping the
+/// dense direct reference (O(N³)) to seconds.
+pub const DEFAULT_ELEMENTS: usize = 3000;
+
+/// Patches are at most this many element sizes long (so at most ~16–64 elements each).
+const PATCH_PER_ELEMENT: f64 = 4.0;
+
+/// A shooter: a piece of one input triangle, seen from one side.
+#[derive(Clone, Debug)]
+pub struct Patch {
+    /// Vertices in the mesh frame, counter-clockwise seen from the side this patch is on.
+    pub verts: [Vec3; 3],
+    /// Unit normal on the side this patch is on.
+    pub normal: Vec3,
+    /// Area in m².
+    pub area: f32,
+    /// Index of the scene triangle (the BVH's numbering) this patch lies on.
+    pub scene_triangle: u32,
+    /// Object and material indices in the scene.
+    pub object: u32,
+    pub material: u32,
+    /// Whether this is the back side of a double-sided surface.
+    pub back: bool,
+    /// Reflectance ρ (material × texture tint, clamped to [0, 0.999]).
+    pub reflectance: Vec3,
+    /// Emitted radiosity E = π L_e (W/m²).
+    pub emission: Vec3,
+    /// The patch's elements (leaves of its quadtree), contiguous.
+    pub elements: Range<u32>,
+    /// Root of its quadtree in `Mesh::nodes`.
+    pub root: u32,
+}
+
+impl Patch {
+    /// Centroid in the mesh frame.
+    pub fn centroid(&self) -> Vec3 {
+        (self.verts[0] + self.verts[1] + self.verts[2]) / 3.0
+    }
+}
+
+/// A receiver: a leaf of a patch's quadtree.
+#[derive(Clone, Debug)]
+pub struct Element {
+    /// Vertices in the mesh frame, same orientation as the patch.
+    pub verts: [Vec3; 3],
+    pub normal: Vec3,
+    pub area: f32,
+    /// The patch it belongs to.
+    pub patch: u32,
+    /// Depth in the quadtree (0 = the patch itself).
+    pub level: u8,
+    /// Display-mesh vertex of each corner.
+    pub corners: [u32; 3],
+}
+
+impl Element {
+    /// Centroid in the mesh frame.
+    pub fn centroid(&self) -> Vec3 {
+        (self.verts[0] + self.verts[1] + self.verts[2]) / 3.0
+    }
+}
+
+/// A quadtree node: four children by midpoint subdivision, or a leaf holding an element.
+#[derive(Clone, Debug)]
+pub struct QuadNode {
+    pub verts: [Vec3; 3],
+    pub children: Option<[u32; 4]>,
+    pub element: Option<u32>,
+}
+
+/// The meshed scene.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    /// World position of the mesh frame's origin (the scene's bounding-box centre).
+    pub origin: DVec3,
+    /// Length of the scene's bounding-box diagonal in metres (the scale for epsilons).
+    pub scale: f32,
+    pub patches: Vec<Patch>,
+    pub elements: Vec<Element>,
+    pub nodes: Vec<QuadNode>,
+    /// All scene triangles in the mesh frame (the BVH's input), and their transmittance.
+    pub triangles: Vec<[Vec3; 3]>,
+    pub transmittance: Vec<f32>,
+    /// Shared-vertex mesh for display and Gouraud reconstruction.
+    pub display: DisplayMesh,
+    /// The element size used, metres.
+    pub element_size: f64,
+    /// Problems met while meshing (degenerate triangles dropped, reflectance clamped).
+    pub warnings: Vec<String>,
+}
+
+/// An input triangle in the mesh frame with everything the patches need.
+struct Source {
+    verts: [Vec3; 3],
+    scene_triangle: u32,
+    object: u32,
+    material: u32,
+    reflectance: Vec3,
+    emission: Vec3,
+    double_sided: bool,
+}
+
+fn area(v: &[Vec3; 3]) -> f32 {
+    0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
+}
+
+fn longest_edge(v: &[Vec3; 3]) -> (usize, f32) {
+    let e = [
+        (v[1] - v[0]).length_squared(),
+        (v[2] - v[1]).length_squared(),
+        (v[0] - v[2]).length_squared(),
+    ];
+    let k = if e[0] >= e[1] && e[0] >= e[2] {
+        0
+    } else if e[1] >= e[2] {
+        1
+    } else {
+        2
+    };
+    (k, e[k].sqrt())
+}
+
+/// Longest-edge bisection until every edge is at most `max_len`.
+fn split_patches(v: [Vec3; 3], max_len: f32, out: &mut Vec<[Vec3; 3]>) {
+    let (k, len) = longest_edge(&v);
+    // The depth guard bounds the work on absurd inputs (a 1e9:1 sliver); 2^24 pieces
+    // would already exceed any sane element budget.
+    fn go(v: [Vec3; 3], max_len: f32, out: &mut Vec<[Vec3; 3]>, k: usize, len: f32, depth: u32) {
+        if len <= max_len || depth >= 24 {
+            out.push(v);
+            return;
+        }
+        let (a, b, c) = (v[k], v[(k + 1) % 3], v[(k + 2) % 3]);
+        let m = (a + b) * 0.5;
+        for t in [[a, m, c], [m, b, c]] {
+            let (k2, l2) = longest_edge(&t);
+            go(t, max_len, out, k2, l2, depth + 1);
+        }
+    }
+    go(v, max_len, out, k, len, 0);
+}
+
+/// Quadtree depth that brings `sqrt(2·area)` to at most `size` (each level halves it).
+fn depth_for(area: f32, size: f64) -> u32 {
+    let m = (2.0 * area as f64).sqrt();
+    if m <= size || size <= 0.0 {
+        return 0;
+    }
+    ((m / size).log2().ceil() as u32).min(12)
+}
+
+fn count_elements(sources: &[Source], size: f64) -> usize {
+    let patch_len = (size * PATCH_PER_ELEMENT) as f32;
+    let mut pieces = Vec::new();
+    let mut total = 0usize;
+    for s in sources {
+        pieces.clear();
+        split_patches(s.verts, patch_len, &mut pieces);
+        let sides = if s.double_sided { 2 } else { 1 };
+        for p in &pieces {
+            total += sides * 4usize.pow(depth_for(area(p), size));
+        }
+    }
+    total
+}
+
+/// Midpoint subdivision children of a triangle, same orientation.
+pub fn subdivide(v: &[Vec3; 3]) -> [[Vec3; 3]; 4] {
+    let ab = (v[0] + v[1]) * 0.5;
+    let bc = (v[1] + v[2]) * 0.5;
+    let ca = (v[2] + v[0]) * 0.5;
+    [[v[0], ab, ca], [ab, v[1], bc], [ca, bc, v[2]], [ab, bc, ca]]
+}
+
+impl Mesh {
+    /// Meshes `scene` with `settings`. Degenerate (zero-area or non-finite) triangles are
+    /// kept out of the patches (with one warning) but stay in the BVH if finite.
+    pub fn build(scene: &Scene, settings: &MeshSettings) -> Mesh {
+        let (lo, hi) = scene.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        let origin = (lo + hi) * 0.5;
+        let scale = ((hi - lo).length() as f32).max(f32::MIN_POSITIVE);
+        let mut warnings = Vec::new();
+        let mut triangles = Vec::with_capacity(scene.triangle_count());
+        let mut transmittance = Vec::with_capacity(scene.triangle_count());
+        let mut sources = Vec::new();
+        let (mut degenerate, mut clamped) = (0usize, 0usize);
+        for (oi, o) in scene.objects.iter().enumerate() {
+            for (ti, t) in o.triangles.iter().enumerate() {
+                let verts = t.map(|v| (o.world_position(v) - origin).as_vec3());
+                let m = o.triangle_material.get(ti).copied().unwrap_or(0);
+                let Some(mat) = scene.materials.get(m as usize) else {
+                    degenerate += 1;
+                    continue;
+                };
+                let scene_triangle = triangles.len() as u32;
+                triangles.push(verts);
+                transmittance.push(o.transmittance.get(ti).copied().unwrap_or(mat.transmittance));
+                // Degenerate: non-finite, or area below f32 resolution at this scale.
+                let a = area(&verts);
+                if !verts.iter().all(|p| p.is_finite()) || !(a > scale * scale * 1e-14) {
+                    degenerate += 1;
+                    continue;
+                }
+                let raw = mat.reflectance * o.reflectance_tint(ti);
+                let rho = sanitize(raw).min(Vec3::splat(0.999));
+                if raw.max_element() > 0.999 {
+                    clamped += 1;
+                }
+                let emission = sanitize(mat.emission * o.emission_tint(ti)) * std::f32::consts::PI;
+                sources.push(Source {
+                    verts,
+                    scene_triangle,
+                    object: oi as u32,
+                    material: m,
+                    reflectance: rho,
+                    emission,
+                    double_sided: mat.double_sided,
+                });
+            }
+        }
+        if degenerate > 0 {
+            warnings.push(format!(
+                "{}: {degenerate} degenerate triangle(s) (zero area, non-finite or no material) receive no light",
+                scene.name
+            ));
+        }
+        if clamped > 0 {
+            warnings.push(format!(
+                "{}: reflectance above 0.999 clamped on {clamped} triangle(s)",
+                scene.name
+            ));
+        }
+        let total_area: f64 = sources.iter().map(|s| area(&s.verts) as f64).sum();
+        let element_size = choose_element_size(&sources, total_area, settings);
+        let mut mesh = Mesh {
+            origin,
+            scale,
+            patches: Vec::new(),
+            elements: Vec::new(),
+            nodes: Vec::new(),
+            triangles,
+            transmittance,
+            display: DisplayMesh::default(),
+            element_size,
+            warnings,
+        };
+        let patch_len = (element_size * PATCH_PER_ELEMENT) as f32;
+        let mut pieces = Vec::new();
+        for s in &sources {
+            pieces.clear();
+            split_patches(s.verts, patch_len, &mut pieces);
+            for side in 0..if s.double_sided { 2 } else { 1 } {
+                for p in &pieces {
+                    let verts = if side == 0 { *p } else { [p[0], p[2], p[1]] };
+                    mesh.push_patch(s, verts, side == 1, depth_for(area(p), element_size));
+                }
+            }
+        }
+        mesh.display = DisplayMesh::build(&mut mesh.elements, &mesh.patches, scale);
+        mesh
+    }
+
+    fn push_patch(&mut self, s: &Source, verts: [Vec3; 3], back: bool, depth: u32) {
+        let n = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+        let first = self.elements.len() as u32;
+        let patch = self.patches.len() as u32;
+        let root = self.push_node(verts, depth, patch, 0);
+        self.patches.push(Patch {
+            verts,
+            normal: n.normalize_or_zero(),
+            area: 0.5 * n.length(),
+            scene_triangle: s.scene_triangle,
+            object: s.object,
+            material: s.material,
+            back,
+            reflectance: s.reflectance,
+            emission: s.emission,
+            elements: first..self.elements.len() as u32,
+            root,
+        });
+    }
+
+    fn push_node(&mut self, verts: [Vec3; 3], depth: u32, patch: u32, level: u8) -> u32 {
+        let index = self.nodes.len() as u32;
+        self.nodes.push(QuadNode {
+            verts,
+            children: None,
+            element: None,
+        });
+        if depth == 0 {
+            let n = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+            self.nodes[index as usize].element = Some(self.elements.len() as u32);
+            self.elements.push(Element {
+                verts,
+                normal: n.normalize_or_zero(),
+                area: 0.5 * n.length(),
+                patch,
+                level,
+                corners: [0; 3],
+            });
+        } else {
+            let kids = subdivide(&verts).map(|c| self.push_node(c, depth - 1, patch, level + 1));
+            self.nodes[index as usize].children = Some(kids);
+        }
+        index
+    }
+
+    /// Converts a world-space point to the mesh frame.
+    pub fn to_local(&self, world: DVec3) -> Vec3 {
+        (world - self.origin).as_vec3()
+    }
+
+    /// Total area of all patches (both sides of double-sided surfaces counted), m².
+    pub fn total_area(&self) -> f64 {
+        self.patches.iter().map(|p| p.area as f64).sum()
+    }
+
+    /// Offset used to lift ray endpoints off surfaces: a millionth of the scene size, but at
+    /// least a few f32 ulps of the coordinates involved (the mesh frame is centred, so
+    /// coordinates are at most `scale`).
+    pub fn epsilon(&self) -> f32 {
+        self.scale * 1e-5
+    }
+
+    /// The element whose surface point is nearest to `p` (mesh frame) among elements facing
+    /// the side `normal` asks about (element normal · `normal` > 0.5), with the barycentric
+    /// coordinates of the nearest point. `None` if no element faces that way.
+    pub fn locate(&self, p: Vec3, normal: Vec3) -> Option<(u32, [f32; 3])> {
+        let n = normal.normalize_or_zero();
+        let mut best: Option<(f32, u32, [f32; 3])> = None;
+        for (i, e) in self.elements.iter().enumerate() {
+            if e.normal.dot(n) <= 0.5 {
+                continue;
+            }
+            let (q, bary) = closest_point_on_triangle(p, &e.verts);
+            let d = (q - p).length_squared();
+            if best.is_none_or(|(bd, _, _)| d < bd) {
+                best = Some((d, i as u32, bary));
+            }
+        }
+        best.map(|(_, i, b)| (i, b))
+    }
+}
+
+fn sanitize(v: Vec3) -> Vec3 {
+    Vec3::new(
+        if v.x.is_finite() { v.x.max(0.0) } else { 0.0 },
+        if v.y.is_finite() { v.y.max(0.0) } else { 0.0 },
+        if v.z.is_finite() { v.z.max(0.0) } else { 0.0 },
+    )
+}
+
+fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSettings) -> f64 {
+    if let Some(s) = settings.element_size.filter(|s| *s > 0.0) {
+        return s;
+    }
+    if sources.is_empty() || total_area <= 0.0 {
+        return 1.0;
+    }
+    let budget = settings
+        .max_elements
+        .unwrap_or(DEFAULT_ELEMENTS.max(sources.len()))
+        .max(1);
+    // Bisection on log(size): count_elements is monotone non-increasing in size. Start
+    // from the size that tiles the area with `budget` right isosceles triangles.
+    let guess = (2.0 * total_area / budget as f64).sqrt();
+    let (mut lo, mut hi) = (guess * 0.25, guess * 64.0);
+    while count_elements(sources, hi) > budget && hi < 1e30 {
+        hi *= 4.0;
+    }
+    for _ in 0..20 {
+        let mid = (lo * hi).sqrt();
+        if count_elements(sources, mid) > budget {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Closest point on triangle `t` to `p` (Ericson, Real-Time Collision Detection, §5.1.5),
+/// with its barycentric coordinates.
+pub fn closest_point_on_triangle(p: Vec3, t: &[Vec3; 3]) -> (Vec3, [f32; 3]) {
+    let (a, b, c) = (t[0], t[1], t[2]);
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, [1.0, 0.0, 0.0]);
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, [0.0, 1.0, 0.0]);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + ab * v, [1.0 - v, v, 0.0]);
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, [0.0, 0.0, 1.0]);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + ac * w, [1.0 - w, 0.0, w]);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + (c - b) * w, [0.0, 1.0 - w, w]);
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (a + ab * v + ac * w, [1.0 - v - w, v, w])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+
+    #[test]
+    fn element_areas_sum_to_patch_and_scene_area() {
+        let scene = builtin::cornell_box();
+        let mesh = Mesh::build(&scene, &MeshSettings::default());
+        for p in &mesh.patches {
+            let sum: f32 = mesh.elements[p.elements.start as usize..p.elements.end as usize]
+                .iter()
+                .map(|e| e.area)
+                .sum();
+            // f32 sums of ≤ 4^12 terms: relative error well under 1e-4.
+            assert!((sum - p.area).abs() <= 1e-4 * p.area, "{sum} vs {}", p.area);
+        }
+        assert!(mesh.elements.len() <= DEFAULT_ELEMENTS);
+        assert!(mesh.elements.len() > DEFAULT_ELEMENTS / 8, "{}", mesh.elements.len());
+    }
+
+    #[test]
+    fn max_elements_is_respected() {
+        let scene = builtin::cornell_box();
+        for budget in [100, 500, 5000] {
+            let mesh = Mesh::build(
+                &scene,
+                &MeshSettings {
+                    max_elements: Some(budget),
+                    ..Default::default()
+                },
+            );
+            assert!(mesh.elements.len() <= budget);
+        }
+    }
+}

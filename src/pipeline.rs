@@ -1,0 +1,51 @@
+//! Scene → mesh → BVH → solver, the sequence the command line and the viewer's worker share.
+
+use crate::accel::Bvh;
+use crate::mesh::{Mesh, MeshSettings};
+use crate::scene::Scene;
+use crate::solver::lighting::ExternalLight;
+use crate::solver::{Solver, SolverError, SolverSettings};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// A meshed scene with its visibility structure, ready to solve.
+pub struct Prepared {
+    pub mesh: Arc<Mesh>,
+    pub bvh: Arc<Bvh>,
+    pub external: ExternalLight,
+    /// Seconds spent meshing and building the BVH.
+    pub mesh_seconds: f64,
+    pub bvh_seconds: f64,
+}
+
+impl Prepared {
+    /// Meshes `scene` and builds its BVH.
+    pub fn new(scene: &Scene, settings: &MeshSettings) -> Prepared {
+        let t = Instant::now();
+        let mesh = Mesh::build(scene, settings);
+        let mesh_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let bvh = Bvh::build(&mesh.triangles, &mesh.transmittance);
+        let bvh_seconds = t.elapsed().as_secs_f64();
+        Prepared {
+            mesh: Arc::new(mesh),
+            bvh: Arc::new(bvh),
+            external: ExternalLight {
+                lights: scene.lights.clone(),
+                environment: scene.environment.clone(),
+            },
+            mesh_seconds,
+            bvh_seconds,
+        }
+    }
+
+    /// A solver over this mesh.
+    pub fn solver(&self, settings: SolverSettings) -> Result<Solver, SolverError> {
+        Solver::new(
+            Arc::clone(&self.mesh),
+            Arc::clone(&self.bvh),
+            self.external.clone(),
+            settings,
+        )
+    }
+}
