@@ -9,3 +9,5 @@ pub mod mesh;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;
+pub mod cli;
+pub mod export;

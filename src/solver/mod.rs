@@ -25,6 +25,7 @@
 
 pub mod direct;
 pub mod form_factor;
+pub mod hemicube;
 pub mod lighting;
 
 use crate::accel::Bvh;

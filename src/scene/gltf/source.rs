@@ -177,6 +177,8 @@ pub(super) struct Buffers<'a> {
     loaded: Vec<OnceCell<Result<Vec<u8>, String>>>,
     /// Shortfalls found when loading (data shorter than `byteLength`): warnings.
     pub notes: std::cell::RefCell<Vec<String>>,
+    /// The first buffer that could not be loaded: fatal for the whole file.
+    failed: std::cell::RefCell<Option<String>>,
 }
 
 impl<'a> Buffers<'a> {
@@ -188,7 +190,14 @@ impl<'a> Buffers<'a> {
             bin,
             loaded: (0..defs.len()).map(|_| OnceCell::new()).collect(),
             notes: Default::default(),
+            failed: Default::default(),
         }
+    }
+
+    /// The error of the first buffer that could not be loaded, if any. A scene with a
+    /// missing or unreadable buffer is refused rather than shown with holes.
+    pub fn failure(&self) -> Option<String> {
+        self.failed.borrow().clone()
     }
 
     /// The bytes of buffer `i`, loading it the first time. Errors name the buffer and file.
@@ -197,7 +206,15 @@ impl<'a> Buffers<'a> {
             .loaded
             .get(i)
             .ok_or_else(|| format!("buffer {i} does not exist ({} buffers)", self.defs.len()))?;
-        cell.get_or_init(|| self.load(i)).as_deref().map_err(Clone::clone)
+        cell.get_or_init(|| {
+            let r = self.load(i);
+            if let Err(e) = &r {
+                self.failed.borrow_mut().get_or_insert_with(|| e.clone());
+            }
+            r
+        })
+        .as_deref()
+        .map_err(Clone::clone)
     }
 
     fn load(&self, i: usize) -> Result<Vec<u8>, String> {

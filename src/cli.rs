@@ -1,0 +1,415 @@
+//! The command line (DESIGN.md §5): `solve`, `probe` and `bench`. Each drives scene → mesh
+//! → accel → solver directly, with no thread and no GUI. Errors surface as one line naming
+//! the file and the problem, and exit status 1.
+
+use crate::export::{baked_glb, write_atomic};
+use crate::mesh::{DisplayMesh, MeshSettings, Reconstruction};
+use crate::pipeline::Prepared;
+use crate::scene::{Scene, builtin};
+use crate::solver::{Method, Solver, SolverSettings, Stats, StepOutcome};
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use glam::{DVec3, Vec3};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+mod bench;
+
+/// Diffuse global illumination (radiosity) for glTF scenes.
+#[derive(Parser, Debug)]
+#[command(name = "radiosity", version, about, long_about = None)]
+pub struct Cli {
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
+    /// Print no warnings or progress.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Solve a scene; optionally write a baked .glb and a stats JSON.
+    Solve {
+        /// A .gltf/.glb file, or builtin:cornell, builtin:furnace-cube, builtin:furnace-sphere.
+        scene: String,
+        #[command(flatten)]
+        options: SolveOptions,
+        /// Baked output: .glb with linear radiance per vertex (COLOR_0).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Statistics as JSON (elements, patches, shots, rays, seconds, unshot fraction,
+        /// residual, energy balance).
+        #[arg(long)]
+        stats: Option<PathBuf>,
+    },
+    /// Radiosity B at surface points: reads x,y,z,nx,ny,nz rows, writes x,y,z,r,g,b.
+    Probe {
+        scene: String,
+        /// CSV with header x,y,z,nx,ny,nz (a point and the outward normal of the side asked about).
+        #[arg(long)]
+        points: PathBuf,
+        /// Output CSV (x,y,z,r,g,b); standard output when absent.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// flat or gouraud (the viewer's default).
+        #[arg(long, default_value = "gouraud")]
+        reconstruction: Reconstruction,
+        #[command(flatten)]
+        options: SolveOptions,
+    },
+    /// Compare methods: error against a reference over time; or ray throughput with --occlusion.
+    Bench {
+        scene: String,
+        /// Comma-separated methods (default: all).
+        #[arg(long, value_delimiter = ',')]
+        methods: Option<Vec<Method>>,
+        /// `direct` (the exact solve on the same mesh, or a long Gauss–Seidel/progressive run
+        /// when the mesh is too big) or a CSV x,y,z,nx,ny,nz,r,g,b of reference values.
+        #[arg(long, default_value = "direct")]
+        reference: String,
+        /// Output folder for convergence.csv and convergence.png.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Measure occlusion rays per second instead (1,000,000 segments between points drawn
+        /// uniformly by area, fixed seed; one thread and all threads).
+        #[arg(long)]
+        occlusion: bool,
+        /// Segments for --occlusion.
+        #[arg(long, default_value_t = 1_000_000)]
+        segments: usize,
+        #[command(flatten)]
+        options: SolveOptions,
+    },
+}
+
+/// Options shared by every command that solves.
+#[derive(Args, Debug, Clone)]
+pub struct SolveOptions {
+    /// progressive, jacobi, gauss-seidel or direct.
+    #[arg(long, default_value = "progressive")]
+    pub method: Method,
+    /// Stop when the unshot fraction (progressive) or relative residual falls below this.
+    #[arg(long, default_value_t = 1e-3)]
+    pub tolerance: f64,
+    /// Stop after this many seconds even if not converged (bench: per method, default 60).
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// Element size in metres (default: chosen for about 3000 elements).
+    #[arg(long)]
+    pub element_size: Option<f64>,
+    /// Most elements when --element-size is not given.
+    #[arg(long)]
+    pub max_elements: Option<usize>,
+    /// Uniform sky radiance, W/(m²·sr): one value or r,g,b. Default for scenes without light: 1.
+    #[arg(long, value_parser = parse_rgb)]
+    pub sky: Option<Vec3>,
+    /// Sun: direction towards the sun x,y,z and optionally its irradiance (W/m²), default 3.
+    #[arg(long, value_parser = parse_sun)]
+    pub sun: Option<(DVec3, Vec3)>,
+    /// Most shadow rays per element–patch form factor.
+    #[arg(long, default_value_t = 16)]
+    pub max_rays: u32,
+}
+
+fn parse_rgb(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let rgb = match v.as_slice() {
+        [x] => Vec3::splat(*x),
+        [r, g, b] => Vec3::new(*r, *g, *b),
+        _ => return Err("expected one value or r,g,b".into()),
+    };
+    if !rgb.is_finite() || rgb.min_element() < 0.0 {
+        return Err("values must be finite and non-negative".into());
+    }
+    Ok(rgb)
+}
+
+fn parse_sun(s: &str) -> Result<(DVec3, Vec3), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let (d, e) = match v.as_slice() {
+        [x, y, z] => (DVec3::new(*x, *y, *z), 3.0),
+        [x, y, z, e] => (DVec3::new(*x, *y, *z), *e),
+        _ => return Err("expected x,y,z or x,y,z,irradiance".into()),
+    };
+    if !d.is_finite() || d.length() == 0.0 || !e.is_finite() || e < 0.0 {
+        return Err("the direction must be finite and non-zero, the irradiance ≥ 0".into());
+    }
+    Ok((d.normalize(), Vec3::splat(e as f32)))
+}
+
+impl SolveOptions {
+    fn mesh_settings(&self) -> MeshSettings {
+        MeshSettings {
+            element_size: self.element_size,
+            max_elements: self.max_elements,
+        }
+    }
+
+    fn solver_settings(&self) -> SolverSettings {
+        let mut s = SolverSettings {
+            method: self.method,
+            tolerance: self.tolerance,
+            ..Default::default()
+        };
+        s.form_factors.max_rays = self.max_rays.max(1);
+        s
+    }
+}
+
+/// Loads `spec` (a path or `builtin:NAME`), adds the default sky when it has no light, and
+/// prints its warnings unless `quiet`.
+pub fn load_scene(spec: &str, options: &SolveOptions, quiet: bool) -> Result<Scene> {
+    let mut scene = if let Some(name) = spec.strip_prefix("builtin:") {
+        builtin::by_name(name).with_context(|| format!("{spec}: unknown built-in scene (known: {})", builtin::NAMES.join(", ")))?
+    } else {
+        crate::scene::gltf::load(Path::new(spec))?
+    };
+    if scene.triangle_count() == 0 {
+        bail!("{spec}: the scene has no triangles");
+    }
+    scene.ensure_light(options.sky, options.sun);
+    if !quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    Ok(scene)
+}
+
+fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Runs `solver` to convergence or the time limit with a progress bar (position: log of the
+/// unshot fraction or residual between 1 and the tolerance).
+fn run_with_progress(solver: &mut Solver, time_limit: Option<f64>, quiet: bool) -> Result<StepOutcome> {
+    let bar = progress_bar(quiet);
+    let start = Instant::now();
+    let cancel = AtomicBool::new(false);
+    let tol = solver.settings().tolerance.max(1e-12);
+    let outcome = loop {
+        let outcome = solver.step(&cancel)?;
+        let s = solver.stats();
+        if let Some(r) = s.unshot_fraction.or(s.residual) {
+            let done = (r.max(tol).ln() / tol.ln()).clamp(0.0, 1.0);
+            bar.set_position((done * 1000.0) as u64);
+            bar.set_message(format!("{} iterations, residual {r:.2e}", s.iterations));
+        }
+        if outcome != StepOutcome::Working || time_limit.is_some_and(|t| start.elapsed() >= Duration::from_secs_f64(t)) {
+            break outcome;
+        }
+    };
+    bar.finish_and_clear();
+    Ok(outcome)
+}
+
+fn prepare(scene: &Scene, options: &SolveOptions, quiet: bool) -> Prepared {
+    let prepared = Prepared::new(scene, &options.mesh_settings());
+    if !quiet {
+        for w in &prepared.mesh.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    prepared
+}
+
+/// The stats JSON of `solve --stats`.
+#[derive(serde::Serialize)]
+struct StatsFile<'a> {
+    scene: &'a str,
+    triangles: usize,
+    element_size: f64,
+    mesh_seconds: f64,
+    bvh_seconds: f64,
+    #[serde(flatten)]
+    stats: &'a Stats,
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+            .context("cannot set the thread count")?;
+    }
+    let quiet = cli.quiet;
+    match cli.command {
+        Command::Solve {
+            scene,
+            options,
+            out,
+            stats,
+        } => {
+            let s = load_scene(&scene, &options, quiet)?;
+            let prepared = prepare(&s, &options, quiet);
+            let mut solver = prepared.solver(options.solver_settings())?;
+            let outcome = run_with_progress(&mut solver, options.time_limit, quiet)?;
+            let st = solver.stats();
+            println!(
+                "{}: {} triangles, {} patches, {} elements; {} in {:.3} s ({} iterations, {} rays), residual {}, energy balance {}{}",
+                s.name,
+                s.triangle_count(),
+                st.patches,
+                st.elements,
+                options.method,
+                st.seconds,
+                st.iterations,
+                st.rays,
+                st.residual.map_or("-".into(), |r| format!("{r:.2e}")),
+                st.energy_balance.map_or("-".into(), |r| format!("{r:.4}")),
+                if outcome == StepOutcome::Converged { "" } else { " (time limit; not converged)" }
+            );
+            if let Some(path) = stats {
+                let file = StatsFile {
+                    scene: &s.name,
+                    triangles: s.triangle_count(),
+                    element_size: prepared.mesh.element_size,
+                    mesh_seconds: prepared.mesh_seconds,
+                    bvh_seconds: prepared.bvh_seconds,
+                    stats: st,
+                };
+                write_atomic(&path, serde_json::to_string_pretty(&file)?.as_bytes())?;
+            }
+            if let Some(path) = out {
+                let values = prepared.mesh.display.vertex_values(&prepared.mesh.elements, &solver.radiosity());
+                write_atomic(&path, &baked_glb(&s, &prepared.mesh, &values))?;
+            }
+            Ok(())
+        }
+        Command::Probe {
+            scene,
+            points,
+            out,
+            reconstruction,
+            options,
+        } => {
+            let pts = read_points(&points)?;
+            let s = load_scene(&scene, &options, quiet)?;
+            let prepared = prepare(&s, &options, quiet);
+            let mut solver = prepared.solver(options.solver_settings())?;
+            run_with_progress(&mut solver, options.time_limit, quiet)?;
+            let values = probe_values(&prepared, &solver.radiosity(), &pts, reconstruction);
+            let mut csv = String::from("x,y,z,r,g,b\n");
+            for ((p, _), v) in pts.iter().zip(&values) {
+                csv += &format!("{},{},{},{},{},{}\n", p.x, p.y, p.z, v.x, v.y, v.z);
+            }
+            match out {
+                Some(path) => write_atomic(&path, csv.as_bytes()),
+                None => {
+                    print!("{csv}");
+                    Ok(())
+                }
+            }
+        }
+        Command::Bench {
+            scene,
+            methods,
+            reference,
+            out,
+            occlusion,
+            segments,
+            options,
+        } => {
+            let s = load_scene(&scene, &options, quiet)?;
+            if occlusion {
+                return bench::occlusion(&s, segments);
+            }
+            let out = out.context("bench needs --out DIR (or --occlusion)")?;
+            // --time-limit applies per method here; 60 s when not given.
+            let time_limit = options.time_limit.unwrap_or(60.0);
+            bench::convergence(&s, &options, methods, &reference, time_limit, &out, quiet)
+        }
+    }
+}
+
+/// Reads a points CSV: header naming x,y,z,nx,ny,nz (any order, extra columns ignored).
+/// Returns world-space points and normals, and the extra columns' values by name.
+pub fn read_points(path: &Path) -> Result<Vec<(DVec3, DVec3)>> {
+    Ok(read_table(path, &["x", "y", "z", "nx", "ny", "nz"])?
+        .into_iter()
+        .map(|r| (DVec3::new(r[0], r[1], r[2]), DVec3::new(r[3], r[4], r[5])))
+        .collect())
+}
+
+/// Reads the named numeric columns of a CSV with a header row.
+pub fn read_table(path: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let header: Vec<&str> = lines
+        .next()
+        .with_context(|| format!("{}: empty file (expected a header {})", path.display(), columns.join(",")))?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let index: Vec<usize> = columns
+        .iter()
+        .map(|c| {
+            header
+                .iter()
+                .position(|h| h == c)
+                .with_context(|| format!("{}: header has no column '{c}' (expected {})", path.display(), columns.join(",")))
+        })
+        .collect::<Result<_>>()?;
+    let mut rows = Vec::new();
+    for (k, line) in lines.enumerate() {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let row = index
+            .iter()
+            .map(|&i| {
+                let cell = cells.get(i).copied().unwrap_or("");
+                cell.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .with_context(|| format!("{}: line {}: '{cell}' is not a finite number", path.display(), k + 2))
+            })
+            .collect::<Result<Vec<f64>>>()?;
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// Reconstructed radiosity at world points with outward normals (zero where no element
+/// faces that way).
+pub fn probe_values(prepared: &Prepared, radiosity: &[Vec3], points: &[(DVec3, DVec3)], mode: Reconstruction) -> Vec<Vec3> {
+    let mesh = &prepared.mesh;
+    let vertex_values = mesh.display.vertex_values(&mesh.elements, radiosity);
+    points
+        .iter()
+        .map(|(p, n)| match mesh.locate(mesh.to_local(*p), n.as_vec3()) {
+            Some((e, bary)) => DisplayMesh::value_at(mode, &mesh.elements, radiosity, &vertex_values, e, bary),
+            None => Vec3::ZERO,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_line_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+}

@@ -1,0 +1,856 @@
+//! glTF 2.0 import ([`load`]) and export ([`write_gltf`]).
+//!
+//! The importer reads `.gltf` (JSON with external or `data:` buffers and images) and `.glb`
+//! (JSON + BIN chunk) files. It walks the JSON itself (`serde_json::Value`, see
+//! [`json`]) rather than through the `gltf` crate: that crate's typed schema rejects valid
+//! files (a scene without `nodes`, integers written as `1.0`, `KHR_mesh_quantization`,
+//! textures whose image is missing) and panics on some invalid ones, and a viewer must
+//! neither refuse the former nor crash on the latter. Every accessor read is
+//! bounds-checked ([`accessor`]); the whole load still runs under `catch_unwind`, so a bug
+//! becomes a [`LoadError`] rather than a crash.
+//!
+//! What comes out (DESIGN.md §4):
+//! - one [`Object`] per (node, mesh) of the default scene (or scene 0, or every root node
+//!   when there are no scenes), all its primitives merged, `world_from_local` composed in
+//!   f64 from the node hierarchy (TRS or `matrix`);
+//! - **winding:** `Object::triangles` are counter-clockwise seen from the front *in world
+//!   space*. When a node's transform mirrors (negative determinant) the loader swaps two
+//!   indices of every triangle, so downstream code never has to look at
+//!   [`Object::mirrors`] to get the front side right;
+//! - triangles from modes 4, 5 and 6 (strips and fans unrolled per §3.7.2.1); points and
+//!   lines are skipped. Triangles with out-of-range indices, non-finite vertices or zero
+//!   area (in world space) are dropped, each kind counted in one warning;
+//! - materials per [`material`]; per-triangle means of base-colour and emissive textures
+//!   (and of `COLOR_0`) in `Object::reflectance_tint` / `emission_tint`, alpha coverage in
+//!   `Object::transmittance` ([`texture`]);
+//! - `KHR_lights_punctual` lights placed by their nodes ([`light`]).
+//!
+//! Every recovered problem is one line in `Scene::warnings`, starting with the file path.
+//! Nothing here adds a default light: the caller decides (`Scene::ensure_light`).
+
+mod accessor;
+mod json;
+mod light;
+mod material;
+mod source;
+mod texture;
+mod write;
+
+pub use write::write_gltf;
+
+use crate::scene::{Light, Material, Object, Scene};
+use glam::{DMat4, DQuat, DVec3, Vec2, Vec3};
+use material::{AlphaMode, MatInfo};
+use serde_json::Value;
+use source::Buffers;
+use std::collections::{BTreeMap, HashMap};
+use std::panic::AssertUnwindSafe;
+use std::path::Path;
+use std::rc::Rc;
+use texture::Pyramid;
+
+/// Why a glTF file could not be loaded. Its `Display` is one line: the file, then the problem.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The file itself could not be read.
+    #[error("{path}: cannot read the file: {source}")]
+    Io {
+        /// The scene file.
+        path: String,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// The file is not valid glTF 2.0 in a way that cannot be worked around (broken
+    /// container or JSON, a buffer that cannot be loaded, …).
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The scene file.
+        path: String,
+        /// What is wrong, one line.
+        message: String,
+    },
+    /// The file is valid but needs something this loader does not do (an extension in
+    /// `extensionsRequired`, such as Draco mesh compression).
+    #[error("{path}: {message}")]
+    Unsupported {
+        /// The scene file.
+        path: String,
+        /// What is missing, one line.
+        message: String,
+    },
+    /// The loader itself failed (a bug): the panic was caught and turned into this error.
+    #[error("{path}: internal error while loading (a bug in the loader): {message}")]
+    Internal {
+        /// The scene file.
+        path: String,
+        /// The panic message.
+        message: String,
+    },
+}
+
+/// Extensions whose presence in `extensionsRequired` we can honour.
+const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
+    "KHR_materials_transmission",
+    "KHR_mesh_quantization",
+];
+
+/// Largest number of distinct warning lines kept per file; the rest are counted.
+const MAX_WARNING_LINES: usize = 40;
+
+/// Loads a glTF 2.0 scene (`.gltf` or `.glb`) from `path`.
+///
+/// Recoverable problems become lines in `Scene::warnings`; unrecoverable ones a
+/// [`LoadError`] naming the file. Never panics on bad input.
+pub fn load(path: &Path) -> Result<Scene, LoadError> {
+    let shown = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| LoadError::Io {
+        path: shown.clone(),
+        source,
+    })?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    match std::panic::catch_unwind(AssertUnwindSafe(|| load_bytes(&shown, dir, &bytes))) {
+        Ok(result) => result,
+        Err(payload) => {
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(LoadError::Internal {
+                path: shown,
+                message: one_line(&message),
+            })
+        }
+    }
+}
+
+/// Collapses a message to one line.
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Warning lines for one file, deduplicated and capped, plus per-kind counters.
+pub(super) struct Warnings {
+    path: String,
+    lines: Vec<String>,
+    dropped_lines: usize,
+    /// Names of materials whose base colour exceeded 1 (reported in one line).
+    pub clamped_reflectance: Vec<String>,
+    /// Emission factors above 1 (allowed here as HDR; the spec says [0, 1]).
+    pub hdr_emission: Vec<String>,
+    /// Primitives of mode 0–3 (points, lines).
+    pub skipped_points_lines: usize,
+    /// Triangles dropped because an index is ≥ the vertex count.
+    pub out_of_range: usize,
+    /// Triangles dropped because a vertex is NaN or infinite (locally or after transform).
+    pub non_finite: usize,
+    /// Triangles dropped because their world-space area is zero.
+    pub degenerate: usize,
+    /// Nodes reached a second time (a cycle or a node with two parents).
+    pub revisited_nodes: usize,
+    /// Nodes with a skin (drawn unskinned).
+    pub skinned: usize,
+}
+
+impl Warnings {
+    fn new(path: &str) -> Self {
+        Warnings {
+            path: path.to_string(),
+            lines: Vec::new(),
+            dropped_lines: 0,
+            clamped_reflectance: Vec::new(),
+            hdr_emission: Vec::new(),
+            skipped_points_lines: 0,
+            out_of_range: 0,
+            non_finite: 0,
+            degenerate: 0,
+            revisited_nodes: 0,
+            skinned: 0,
+        }
+    }
+
+    /// Records one warning (the file path is prefixed here).
+    pub fn line(&mut self, message: String) {
+        let line = format!("{}: {}", self.path, one_line(&message));
+        if self.lines.contains(&line) {
+            return;
+        }
+        if self.lines.len() < MAX_WARNING_LINES {
+            self.lines.push(line);
+        } else {
+            self.dropped_lines += 1;
+        }
+    }
+
+    fn finish(mut self) -> Vec<String> {
+        let list = |names: &[String]| {
+            let mut s = names.iter().take(5).map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+            if names.len() > 5 {
+                s += &format!(" and {} more", names.len() - 5);
+            }
+            s
+        };
+        let mut tail = Vec::new();
+        if !self.clamped_reflectance.is_empty() {
+            tail.push(format!(
+                "baseColorFactor above 1 clamped to {} (reflectance must stay below 1) in {} material(s): {}",
+                material::MAX_REFLECTANCE,
+                self.clamped_reflectance.len(),
+                list(&self.clamped_reflectance)
+            ));
+        }
+        if !self.hdr_emission.is_empty() {
+            tail.push(format!(
+                "emissiveFactor above 1 (outside the spec's [0, 1]) used as given in: {}",
+                list(&self.hdr_emission)
+            ));
+        }
+        let counted = [
+            (self.skipped_points_lines, "point/line primitive(s) skipped (only triangles are used)"),
+            (self.out_of_range, "triangle(s) with vertex indices out of range dropped"),
+            (self.non_finite, "triangle(s) with NaN or infinite vertex positions dropped"),
+            (self.degenerate, "zero-area triangle(s) dropped"),
+            (self.revisited_nodes, "node(s) reached more than once (a cycle or two parents) visited only once"),
+            (self.skinned, "skinned node(s) drawn in their bind pose (skinning is ignored)"),
+        ];
+        for (n, what) in counted {
+            if n > 0 {
+                tail.push(format!("{n} {what}"));
+            }
+        }
+        for t in tail {
+            self.lines.push(format!("{}: {}", self.path, t));
+        }
+        if self.dropped_lines > 0 {
+            self.lines
+                .push(format!("{}: … and {} more warnings", self.path, self.dropped_lines));
+        }
+        self.lines
+    }
+}
+
+fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError> {
+    let invalid = |message: String| LoadError::Invalid {
+        path: shown.to_string(),
+        message: one_line(&message),
+    };
+    let unsupported = |message: String| LoadError::Unsupported {
+        path: shown.to_string(),
+        message: one_line(&message),
+    };
+    let mut warnings = Warnings::new(shown);
+    let container = source::split(bytes).map_err(invalid)?;
+    for n in container.notes {
+        warnings.line(n);
+    }
+    let root: Value = serde_json::from_slice(container.json)
+        .map_err(|e| invalid(format!("not a glTF file: the JSON does not parse ({e})")))?;
+    if !root.is_object() {
+        return Err(invalid("not a glTF file: the JSON is not an object".into()));
+    }
+    let version = root
+        .get("asset")
+        .and_then(|a| a.get("version"))
+        .and_then(Value::as_str)
+        .ok_or_else(|| invalid("not a glTF 2.0 file: no `asset.version`".into()))?;
+    if version.split('.').next() != Some("2") {
+        return Err(unsupported(format!(
+            "glTF version {version} is not supported (only 2.x)"
+        )));
+    }
+    if let Some(min) = root["asset"].get("minVersion").and_then(Value::as_str)
+        && min != "2.0"
+    {
+        return Err(unsupported(format!("the file needs glTF {min}; only 2.0 is supported")));
+    }
+    for ext in json::array(&root, "extensionsRequired").map_err(invalid)? {
+        let ext = ext.as_str().unwrap_or("?");
+        if ext == "KHR_draco_mesh_compression" {
+            return Err(unsupported(
+                "Draco-compressed meshes (KHR_draco_mesh_compression) are not supported".into(),
+            ));
+        }
+        if !SUPPORTED_REQUIRED.contains(&ext) {
+            return Err(unsupported(format!(
+                "the file requires the extension {ext}, which is not supported"
+            )));
+        }
+    }
+    // The top-level arrays must be arrays; a wrong type there is not worth guessing around.
+    for key in ["nodes", "meshes", "accessors", "bufferViews", "buffers", "materials", "scenes"] {
+        json::array(&root, key).map_err(invalid)?;
+    }
+    let buffers_def = json::array(&root, "buffers").unwrap_or(&[]);
+    let buffers = Buffers::new(dir, buffers_def, container.bin.map(<[u8]>::to_vec));
+    let mut loader = Loader {
+        root: &root,
+        dir,
+        buffers,
+        warn: warnings,
+        materials: Vec::new(),
+        infos: Vec::new(),
+        default_material: None,
+        objects: Vec::new(),
+        lights: Vec::new(),
+        light_defs: light::definitions(&root),
+        jobs: Vec::new(),
+        positions: HashMap::new(),
+        missing_uv_warned: Vec::new(),
+    };
+    loader.run().map_err(invalid)?;
+    let Loader {
+        warn,
+        materials,
+        objects,
+        lights,
+        buffers,
+        ..
+    } = loader;
+    let mut warn = warn;
+    for n in buffers.notes.take() {
+        warn.line(n);
+    }
+    Ok(Scene {
+        name: shown.to_string(),
+        objects,
+        materials,
+        lights,
+        environment: None,
+        warnings: warn.finish(),
+    })
+}
+
+/// UV triangles of one primitive's kept triangles, for the texture pass.
+struct TexJob {
+    /// Index into `Loader::objects`.
+    object: usize,
+    /// First triangle of this primitive in that object.
+    first: usize,
+    /// Material index (into `Loader::infos`).
+    material: usize,
+    /// Per TEXCOORD set used: the UVs of each triangle's three corners.
+    uv_sets: Vec<(u32, Vec<[Vec2; 3]>)>,
+}
+
+/// Which texture of a material a job samples.
+#[derive(Clone, Copy, PartialEq)]
+enum Slot {
+    Base,
+    Emissive,
+}
+
+struct Loader<'a> {
+    root: &'a Value,
+    dir: &'a Path,
+    buffers: Buffers<'a>,
+    warn: Warnings,
+    materials: Vec<Material>,
+    infos: Vec<MatInfo>,
+    default_material: Option<u32>,
+    objects: Vec<Object>,
+    lights: Vec<Light>,
+    light_defs: Vec<Result<light::LightDef, String>>,
+    jobs: Vec<TexJob>,
+    /// Decoded POSITION accessors (meshes instanced by several nodes are read once).
+    positions: HashMap<usize, Rc<Vec<Vec3>>>,
+    /// Materials already warned about for a missing TEXCOORD set.
+    missing_uv_warned: Vec<usize>,
+}
+
+impl Loader<'_> {
+    fn run(&mut self) -> Result<(), String> {
+        let root = self.root;
+        for (i, def) in json::array(root, "materials")?.iter().enumerate() {
+            let (m, info) = material::convert(root, i, def, &mut self.warn);
+            if m.emission.max_element() > 1.0 && json::extension(def, "KHR_materials_emissive_strength").is_none() {
+                self.warn.hdr_emission.push(m.name.clone());
+            }
+            self.materials.push(m);
+            self.infos.push(info);
+        }
+        self.traverse()?;
+        self.apply_textures()?;
+        Ok(())
+    }
+
+    /// The root nodes to draw: the `scene`'s, else scene 0's, else every parentless node.
+    fn root_nodes(&mut self) -> Result<Vec<usize>, String> {
+        let root = self.root;
+        let scenes = json::array(root, "scenes")?;
+        let nodes = json::array(root, "nodes")?;
+        let chosen = match json::index(root, "scene") {
+            Ok(Some(s)) if s < scenes.len() => Some(s),
+            Ok(Some(s)) => {
+                if !scenes.is_empty() {
+                    self.warn.line(format!("`scene` {s} does not exist; using scene 0"));
+                }
+                (!scenes.is_empty()).then_some(0)
+            }
+            Ok(None) => (!scenes.is_empty()).then_some(0),
+            Err(e) => {
+                self.warn.line(format!("{e}; using scene 0"));
+                (!scenes.is_empty()).then_some(0)
+            }
+        };
+        if let Some(s) = chosen {
+            let list = json::array(&scenes[s], "nodes").map_err(|e| format!("scenes[{s}]: {e}"))?;
+            let mut out = Vec::new();
+            for v in list {
+                match json::as_uint(v) {
+                    Some(n) => out.push(n as usize),
+                    None => self.warn.line(format!("scenes[{s}].nodes: {} is not a node index", json::describe(v))),
+                }
+            }
+            return Ok(out);
+        }
+        // No scenes: draw every node that is nobody's child.
+        let mut is_child = vec![false; nodes.len()];
+        for n in nodes {
+            for c in json::array(n, "children").unwrap_or(&[]) {
+                if let Some(c) = json::as_uint(c).filter(|&c| (c as usize) < nodes.len()) {
+                    is_child[c as usize] = true;
+                }
+            }
+        }
+        Ok((0..nodes.len()).filter(|&n| !is_child[n]).collect())
+    }
+
+    /// Walks the node tree depth-first without recursion; each node is visited at most
+    /// once, so cycles and shared children cannot hang or duplicate anything.
+    fn traverse(&mut self) -> Result<(), String> {
+        let root = self.root;
+        let nodes = json::array(root, "nodes")?;
+        let mut visited = vec![false; nodes.len()];
+        let mut stack: Vec<(usize, DMat4)> = self
+            .root_nodes()?
+            .into_iter()
+            .rev()
+            .map(|n| (n, DMat4::IDENTITY))
+            .collect();
+        while let Some((n, parent)) = stack.pop() {
+            let Some(node) = nodes.get(n) else {
+                self.warn.line(format!("node {n} does not exist; skipped"));
+                continue;
+            };
+            if visited[n] {
+                self.warn.revisited_nodes += 1;
+                continue;
+            }
+            visited[n] = true;
+            let local = match node_transform(node) {
+                Ok(m) => m,
+                Err(e) => {
+                    self.warn.line(format!("nodes[{n}]: {e}; node and its children skipped"));
+                    continue;
+                }
+            };
+            let world = parent * local;
+            if node.get("skin").is_some() {
+                self.warn.skinned += 1;
+            }
+            match json::index(node, "mesh") {
+                Ok(Some(m)) => self.add_mesh(n, node, m, world)?,
+                Ok(None) => {}
+                Err(e) => self.warn.line(format!("nodes[{n}]: {e}; mesh skipped")),
+            }
+            if let Some(ext) = json::extension(node, "KHR_lights_punctual") {
+                self.add_light(n, ext, world);
+            }
+            match json::array(node, "children") {
+                Ok(children) => {
+                    for c in children.iter().rev() {
+                        match json::as_uint(c) {
+                            Some(c) => stack.push((c as usize, world)),
+                            None => self.warn.line(format!("nodes[{n}].children: {} is not a node index", json::describe(c))),
+                        }
+                    }
+                }
+                Err(e) => self.warn.line(format!("nodes[{n}]: {e}; children skipped")),
+            }
+        }
+        Ok(())
+    }
+
+    fn add_light(&mut self, n: usize, ext: &Value, world: DMat4) {
+        let at = format!("nodes[{n}].KHR_lights_punctual");
+        let l = match json::index(ext, "light") {
+            Ok(Some(l)) => l,
+            Ok(None) => return self.warn.line(format!("{at}: no `light`; skipped")),
+            Err(e) => return self.warn.line(format!("{at}: {e}; skipped")),
+        };
+        match self.light_defs.get(l) {
+            None => self.warn.line(format!("{at}: light {l} does not exist; skipped")),
+            Some(Err(e)) => self.warn.line(format!("KHR_lights_punctual light {l}: {e}; skipped")),
+            Some(Ok(def)) => match light::place(def, world) {
+                Ok(light) => self.lights.push(light),
+                Err(e) => self.warn.line(format!("{at}: light {l} skipped: {e}")),
+            },
+        }
+    }
+
+    fn add_mesh(&mut self, n: usize, node: &Value, m: usize, world: DMat4) -> Result<(), String> {
+        let root = self.root;
+        let Some(mesh) = json::array(root, "meshes")?.get(m) else {
+            self.warn.line(format!("nodes[{n}]: mesh {m} does not exist; skipped"));
+            return Ok(());
+        };
+        let name = json::name(node)
+            .or_else(|| json::name(mesh))
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("mesh {m}"));
+        let weights: Vec<f64> = [node, mesh]
+            .iter()
+            .find_map(|v| v.get("weights").and_then(Value::as_array))
+            .map(|w| w.iter().map(|x| x.as_f64().unwrap_or(0.0)).collect())
+            .unwrap_or_default();
+        let mut object = Object {
+            name,
+            world_from_local: world,
+            ..Default::default()
+        };
+        let primitives = match json::array(mesh, "primitives") {
+            Ok(p) => p,
+            Err(e) => {
+                self.warn.line(format!("meshes[{m}]: {e}; skipped"));
+                return Ok(());
+            }
+        };
+        for (p, prim) in primitives.iter().enumerate() {
+            let result = self.add_primitive(&mut object, prim, &weights);
+            if let Some(fatal) = self.buffers.failure() {
+                return Err(fatal);
+            }
+            if let Err(e) = result {
+                self.warn.line(format!("meshes[{m}].primitives[{p}]: {e}; primitive skipped"));
+            }
+        }
+        if !object.triangles.is_empty() {
+            self.objects.push(object);
+        }
+        Ok(())
+    }
+
+    /// POSITION accessor `i`, decoded once.
+    fn positions(&mut self, i: usize) -> Result<Rc<Vec<Vec3>>, String> {
+        if let Some(p) = self.positions.get(&i) {
+            return Ok(p.clone());
+        }
+        let a = accessor::read(self.root, &self.buffers, i, &["VEC3"])?;
+        let p: Rc<Vec<Vec3>> = Rc::new(
+            (0..a.count())
+                .map(|k| {
+                    let e = a.element(k);
+                    Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32)
+                })
+                .collect(),
+        );
+        self.positions.insert(i, p.clone());
+        Ok(p)
+    }
+
+    /// Appends one primitive's valid triangles to `object`.
+    fn add_primitive(&mut self, object: &mut Object, prim: &Value, weights: &[f64]) -> Result<(), String> {
+        let root = self.root;
+        let mode = json::uint(prim, "mode")?.unwrap_or(4);
+        match mode {
+            4..=6 => {}
+            0..=3 => {
+                self.warn.skipped_points_lines += 1;
+                return Ok(());
+            }
+            m => return Err(format!("unknown primitive mode {m}")),
+        }
+        let attrs = prim
+            .get("attributes")
+            .filter(|a| a.is_object())
+            .ok_or("no `attributes`")?;
+        let pos_index = json::index(attrs, "POSITION")?.ok_or("no POSITION attribute")?;
+        let mut positions = self.positions(pos_index)?;
+        if weights.iter().any(|&w| w != 0.0) {
+            positions = Rc::new(self.morph(prim, &positions, weights)?);
+        }
+        let n = positions.len();
+        let indices = match json::index(prim, "indices")? {
+            Some(i) => Some(accessor::read_indices(root, &self.buffers, i)?),
+            None => None,
+        };
+        let vertex = |k: usize| -> u32 {
+            match &indices {
+                Some(ix) => ix[k],
+                None => k as u32,
+            }
+        };
+        let len = indices.as_ref().map_or(n, Vec::len);
+        // §3.7.2.1: strips p_i = {v_i, v_(i+(1+i%2)), v_(i+(2−i%2))}; fans p_i = {v_(i+1), v_(i+2), v_0}.
+        let corners: Vec<[u32; 3]> = match mode {
+            4 => (0..len / 3).map(|t| [vertex(3 * t), vertex(3 * t + 1), vertex(3 * t + 2)]).collect(),
+            5 => (0..len.saturating_sub(2))
+                .map(|i| [vertex(i), vertex(i + 1 + i % 2), vertex(i + 2 - i % 2)])
+                .collect(),
+            _ => (0..len.saturating_sub(2))
+                .map(|i| [vertex(i + 1), vertex(i + 2), vertex(0)])
+                .collect(),
+        };
+
+        let world = object.world_from_local;
+        let world_pos: Vec<DVec3> = positions.iter().map(|p| world.transform_point3(p.as_dvec3())).collect();
+        let mut kept: Vec<[u32; 3]> = Vec::with_capacity(corners.len());
+        for t in corners {
+            if t.iter().any(|&v| v as usize >= n) {
+                self.warn.out_of_range += 1;
+                continue;
+            }
+            let [a, b, c] = t.map(|v| world_pos[v as usize]);
+            if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+                self.warn.non_finite += 1;
+                continue;
+            }
+            // Zero area: the cross product vanishes relative to the longest edge. 1e-12 is
+            // far above f64 rounding of f32 inputs (~1e-16) and far below any real sliver.
+            let cross = (b - a).cross(c - a).length();
+            let longest = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
+            if !(cross > 1e-12 * longest) {
+                self.warn.degenerate += 1;
+                continue;
+            }
+            kept.push(t);
+        }
+        if kept.is_empty() {
+            return Ok(());
+        }
+
+        let material = self.material_for(prim);
+        let mirrored = world.determinant() < 0.0;
+        let first = object.triangles.len();
+        let mut remap = vec![u32::MAX; n];
+        for t in &kept {
+            let mut out = [0u32; 3];
+            for (o, &v) in out.iter_mut().zip(t) {
+                let r = &mut remap[v as usize];
+                if *r == u32::MAX {
+                    *r = object.positions.len() as u32;
+                    object.positions.push(positions[v as usize]);
+                }
+                *o = *r;
+            }
+            if mirrored {
+                out.swap(1, 2); // keep counter-clockwise in world space
+            }
+            object.triangles.push(out);
+            object.triangle_material.push(material);
+        }
+
+        // COLOR_0 multiplies the base colour (§3.7.2.1); its mean over a linear triangle is
+        // the mean of its corners.
+        if let Some(ci) = json::index(attrs, "COLOR_0")? {
+            match accessor::read(root, &self.buffers, ci, &["VEC3", "VEC4"]) {
+                Ok(colors) if colors.count() >= n => {
+                    let tint = &mut object.reflectance_tint;
+                    tint.resize(object.triangles.len(), Vec3::ONE);
+                    for (k, t) in kept.iter().enumerate() {
+                        let mut sum = Vec3::ZERO;
+                        for &v in t {
+                            let e = colors.element(v as usize);
+                            sum += Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32);
+                        }
+                        tint[first + k] = (sum / 3.0).clamp(Vec3::ZERO, Vec3::ONE);
+                    }
+                }
+                Ok(_) => self.warn.line(format!("accessors[{ci}]: COLOR_0 has fewer elements than POSITION; ignored")),
+                Err(e) => self.warn.line(format!("COLOR_0: {e}; ignored")),
+            }
+        }
+
+        // Texture coordinates for the texture pass.
+        let info = &self.infos[material as usize];
+        let mut sets: Vec<u32> = [&info.base_tex, &info.emissive_tex]
+            .into_iter()
+            .flatten()
+            .map(|t| t.tex_coord)
+            .collect();
+        sets.dedup();
+        let mut uv_sets = Vec::new();
+        for set in sets {
+            let key = format!("TEXCOORD_{set}");
+            let uvs = match json::index(attrs, &key)? {
+                Some(a) => accessor::read(root, &self.buffers, a, &["VEC2"])
+                    .and_then(|a| (a.count() >= n).then_some(a).ok_or_else(|| "fewer elements than POSITION".into())),
+                None => Err("missing".to_string()),
+            };
+            match uvs {
+                Ok(a) => {
+                    let uv = |v: u32| {
+                        let e = a.element(v as usize);
+                        Vec2::new(e[0] as f32, e[1] as f32)
+                    };
+                    uv_sets.push((set, kept.iter().map(|t| t.map(uv)).collect()));
+                }
+                Err(e) => {
+                    if !self.missing_uv_warned.contains(&(material as usize)) {
+                        self.missing_uv_warned.push(material as usize);
+                        let name = &self.materials[material as usize].name;
+                        self.warn.line(format!("{key} of a primitive using material '{name}': {e}; its texture is ignored there"));
+                    }
+                }
+            }
+        }
+        if !uv_sets.is_empty() {
+            self.jobs.push(TexJob {
+                object: self.objects.len(),
+                first,
+                material: material as usize,
+                uv_sets,
+            });
+        }
+        Ok(())
+    }
+
+    /// Positions with the morph targets' POSITION displacements added, weighted.
+    fn morph(&mut self, prim: &Value, base: &[Vec3], weights: &[f64]) -> Result<Vec<Vec3>, String> {
+        let mut out = base.to_vec();
+        for (target, &w) in json::array(prim, "targets")?.iter().zip(weights) {
+            if w == 0.0 {
+                continue;
+            }
+            if let Some(a) = json::index(target, "POSITION")? {
+                let d = accessor::read(self.root, &self.buffers, a, &["VEC3"])?;
+                for (k, p) in out.iter_mut().enumerate().take(d.count()) {
+                    let e = d.element(k);
+                    *p += Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32) * w as f32;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The material index of a primitive (the glTF default material when it has none).
+    fn material_for(&mut self, prim: &Value) -> u32 {
+        match json::index(prim, "material") {
+            Ok(Some(m)) if m < self.infos.len() => return m as u32,
+            Ok(Some(m)) => self.warn.line(format!("material {m} does not exist; the default material is used")),
+            Ok(None) => {}
+            Err(e) => self.warn.line(format!("primitive {e}; the default material is used")),
+        }
+        *self.default_material.get_or_insert_with(|| {
+            let (m, info) = material::default_material();
+            self.materials.push(m);
+            self.infos.push(info);
+            (self.materials.len() - 1) as u32
+        })
+    }
+
+    /// Decodes each used image once and turns it into per-triangle factors.
+    fn apply_textures(&mut self) -> Result<(), String> {
+        let mut by_image: BTreeMap<usize, Vec<(usize, Slot)>> = BTreeMap::new();
+        for (j, job) in self.jobs.iter().enumerate() {
+            let info = &self.infos[job.material];
+            if let Some(t) = &info.base_tex {
+                by_image.entry(t.image).or_default().push((j, Slot::Base));
+            }
+            if let Some(t) = &info.emissive_tex {
+                by_image.entry(t.image).or_default().push((j, Slot::Emissive));
+            }
+        }
+        for (image, uses) in by_image {
+            let decoded = texture::image_bytes(self.root, &self.buffers, self.dir, image).and_then(|b| Pyramid::decode(&b));
+            if let Some(fatal) = self.buffers.failure() {
+                return Err(fatal);
+            }
+            let pyramid = match decoded {
+                Ok(p) => p,
+                Err(e) => {
+                    let uri = self.root["images"][image]["uri"].as_str().filter(|u| !u.starts_with("data:"));
+                    let what = uri.map(|u| format!(" ('{u}')")).unwrap_or_default();
+                    self.warn.line(format!("images[{image}]{what}: {e}; surfaces using it are untextured"));
+                    continue;
+                }
+            };
+            let mut coverage: Vec<(f32, Pyramid)> = Vec::new();
+            for (j, slot) in uses {
+                self.apply_job(j, slot, &pyramid, &mut coverage);
+            }
+        }
+        Ok(())
+    }
+
+    fn apply_job(&mut self, j: usize, slot: Slot, pyramid: &Pyramid, coverage: &mut Vec<(f32, Pyramid)>) {
+        let job = &self.jobs[j];
+        let info = &self.infos[job.material];
+        let tref = match slot {
+            Slot::Base => info.base_tex.as_ref(),
+            Slot::Emissive => info.emissive_tex.as_ref(),
+        };
+        let Some(tref) = tref else { return };
+        let Some((_, uvs)) = job.uv_sets.iter().find(|(s, _)| *s == tref.tex_coord) else {
+            return;
+        };
+        let object = &mut self.objects[job.object];
+        let count = object.triangles.len();
+        // Alpha coverage per MASK triangle: the fraction of texels with
+        // baseColorFactor.a × texture alpha ≥ alphaCutoff, i.e. texture alpha ≥ cutoff / factor.
+        let mask_pyramid = match (slot, info.alpha_mode) {
+            (Slot::Base, AlphaMode::Mask(cutoff)) => {
+                let threshold = if info.base_alpha > 0.0 { cutoff / info.base_alpha } else { f32::INFINITY };
+                let at = match coverage.iter().position(|(t, _)| *t == threshold) {
+                    Some(k) => k,
+                    None => {
+                        coverage.push((threshold, pyramid.coverage(threshold)));
+                        coverage.len() - 1
+                    }
+                };
+                Some(&coverage[at].1)
+            }
+            _ => None,
+        };
+        let needs_alpha = slot == Slot::Base && info.alpha_mode != AlphaMode::Opaque;
+        if needs_alpha && object.transmittance.len() != count {
+            let materials = &self.materials;
+            object.transmittance = object
+                .triangle_material
+                .iter()
+                .map(|&m| materials[m as usize].transmittance)
+                .collect();
+        }
+        let tint = match slot {
+            Slot::Base => &mut object.reflectance_tint,
+            Slot::Emissive => &mut object.emission_tint,
+        };
+        tint.resize(count, Vec3::ONE);
+        for (k, uv) in uvs.iter().enumerate() {
+            let t = job.first + k;
+            let uv = uv.map(|p| texture::transform_uv(tref, p));
+            let mean = pyramid.triangle_mean(uv, tref.wrap);
+            tint[t] *= Vec3::new(mean[0], mean[1], mean[2]);
+            if let Some(mask) = mask_pyramid {
+                let cov = mask.triangle_mean(uv, tref.wrap)[0];
+                object.transmittance[t] = info.transmittance(cov);
+            } else if needs_alpha {
+                object.transmittance[t] = info.transmittance(info.base_alpha * mean[3]);
+            }
+        }
+    }
+}
+
+/// A node's local transform: `matrix` (column-major) if given, else T · R · S (§3.5.3).
+fn node_transform(node: &Value) -> Result<DMat4, String> {
+    let m = if let Some(m) = json::numbers::<16>(node, "matrix")? {
+        DMat4::from_cols_array(&m)
+    } else {
+        let t = json::numbers::<3>(node, "translation")?.unwrap_or([0.0; 3]);
+        let r = json::numbers::<4>(node, "rotation")?.unwrap_or([0.0, 0.0, 0.0, 1.0]);
+        let s = json::numbers::<3>(node, "scale")?.unwrap_or([1.0; 3]);
+        let q = DQuat::from_array(r);
+        let len = q.length();
+        if !(len.is_finite() && len > 0.0) {
+            return Err(format!("rotation {r:?} is not a valid quaternion"));
+        }
+        DMat4::from_scale_rotation_translation(DVec3::from(s), q / len, DVec3::from(t))
+    };
+    if !m.is_finite() {
+        return Err("transform is not finite".into());
+    }
+    Ok(m)
+}

@@ -1,0 +1,1 @@
+//! Hemicube form factors (Cohen & Greenberg 1985). PLACEHOLDER being written.
