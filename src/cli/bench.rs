@@ -164,7 +164,7 @@ pub fn convergence(
         let to_1pct = mine.iter().find(|r| r.rms <= 0.01).map(|r| r.seconds);
         let last = mine.last().context("no step ran")?;
         let line = format!(
-            "{:<13} time to 1% RMS: {:>9}  final: {:.3} s, {} iterations, RMS {:.2e}, max {:.2e}{}",
+            "{:<17} time to 1% RMS: {:>9}  final: {:.3} s, {} iterations, RMS {:.2e}, max {:.2e}{}",
             method.name(),
             to_1pct.map_or("never".into(), |t| format!("{t:.3} s")),
             last.seconds,

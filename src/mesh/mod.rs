@@ -23,8 +23,8 @@ use glam::{DVec3, Vec3};
 use std::ops::Range;
 
 /// How finely to mesh. `element_size` wins over `max_elements`; with neither, the element
-/// size is chosen so that the mesh has about [`DEFAULT_ELEMENTS`] elements (or one element
-/// per patch for scenes with more triangles than that).
+/// size is chosen so that the mesh has at most [`DEFAULT_ELEMENTS`] elements, or 1.5 per
+/// triangle side for scenes with more triangles than that.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MeshSettings {
     /// Target element size in metres: an element's `sqrt(2·area)` (the leg of a right
@@ -123,6 +123,10 @@ pub struct Mesh {
     pub element_size: f64,
     /// Problems met while meshing (degenerate triangles dropped, reflectance clamped).
     pub warnings: Vec<String>,
+    /// Patches of each scene triangle: `triangle_patches[t]` is a range of patch indices
+    /// (front side first, then back side for double-sided materials; empty when the
+    /// triangle is degenerate).
+    pub triangle_patches: Vec<Range<u32>>,
 }
 
 /// An input triangle in the mesh frame with everything the patches need.
@@ -279,7 +283,9 @@ impl Mesh {
             display: DisplayMesh::default(),
             element_size,
             warnings,
+            triangle_patches: Vec::new(),
         };
+        mesh.triangle_patches = vec![0..0; mesh.triangles.len()];
         let patch_len = (element_size * PATCH_PER_ELEMENT) as f32;
         let mut pieces = Vec::new();
         for s in &sources {
@@ -293,6 +299,7 @@ impl Mesh {
             }
         }
         mesh.display = DisplayMesh::build(&mut mesh.elements, &mesh.patches, scale);
+        mesh.finish_triangle_ranges();
         mesh
     }
 
@@ -339,6 +346,52 @@ impl Mesh {
             self.nodes[index as usize].children = Some(kids);
         }
         index
+    }
+
+    fn finish_triangle_ranges(&mut self) {
+        let mut k = 0;
+        while k < self.patches.len() {
+            let t = self.patches[k].scene_triangle;
+            let start = k;
+            while k < self.patches.len() && self.patches[k].scene_triangle == t {
+                k += 1;
+            }
+            self.triangle_patches[t as usize] = start as u32..k as u32;
+        }
+    }
+
+    /// The element under point `x` (mesh frame, on scene triangle `triangle`) on the side
+    /// whose normal has a positive dot product with `toward` (the direction back to an
+    /// observer). `None` for the back of single-sided surfaces and degenerate triangles.
+    pub fn element_at(&self, triangle: u32, x: Vec3, toward: Vec3) -> Option<u32> {
+        let range = self.triangle_patches.get(triangle as usize)?.clone();
+        let mut best: Option<(f32, u32)> = None;
+        for p in range {
+            let patch = &self.patches[p as usize];
+            if patch.normal.dot(toward) <= 0.0 {
+                continue;
+            }
+            let (q, _) = closest_point_on_triangle(x, &patch.verts);
+            let d = (q - x).length_squared();
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, p));
+            }
+        }
+        let (_, p) = best?;
+        // Descend the quadtree to the leaf whose triangle is nearest to x.
+        let mut node = &self.nodes[self.patches[p as usize].root as usize];
+        while let Some(children) = node.children {
+            let mut best = (f32::INFINITY, children[0]);
+            for c in children {
+                let (q, _) = closest_point_on_triangle(x, &self.nodes[c as usize].verts);
+                let d = (q - x).length_squared();
+                if d < best.0 {
+                    best = (d, c);
+                }
+            }
+            node = &self.nodes[best.1 as usize];
+        }
+        node.element
     }
 
     /// Converts a world-space point to the mesh frame.
@@ -393,10 +446,21 @@ fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSetti
     if sources.is_empty() || total_area <= 0.0 {
         return 1.0;
     }
+    // The coarsest mesh has one element per patch side; no budget can go below it.
+    let coarsest: usize = sources.iter().map(|s| if s.double_sided { 2 } else { 1 }).sum();
+    // By default large scenes get half as many elements again as they have patch sides, so
+    // their biggest triangles (floors, walls) are still subdivided.
     let budget = settings
         .max_elements
-        .unwrap_or(DEFAULT_ELEMENTS.max(sources.len()))
-        .max(1);
+        .unwrap_or(DEFAULT_ELEMENTS.max(coarsest + coarsest / 2))
+        .max(coarsest);
+    if budget == coarsest {
+        // Every triangle is one patch and one element: the size is that of the largest.
+        return sources
+            .iter()
+            .map(|s| (2.0 * area(&s.verts) as f64).sqrt().max(longest_edge(&s.verts).1 as f64 / PATCH_PER_ELEMENT))
+            .fold(0.0, f64::max);
+    }
     // Bisection on log(size): count_elements is monotone non-increasing in size. Start
     // from the size that tiles the area with `budget` right isosceles triangles.
     let guess = (2.0 * total_area / budget as f64).sqrt();

@@ -15,6 +15,8 @@
 //!   unshot fraction falls below the tolerance. Form-factor columns are cached.
 //! - [`Method::Jacobi`] and [`Method::GaussSeidel`]: gathering sweeps over the stored rows of
 //!   F (Cohen & Greenberg 1985); stop on the relative residual.
+//! - [`Method::StochasticJacobi`]: all unshot power shot at once by rays
+//!   ([`stochastic`]), for scenes too large for form factors; an unbiased, noisy estimate.
 //! - [`Method::Direct`]: LU of the reduced M×M patch system (I − P ρ F) B̄ = P E', then
 //!   B = E' + ρ F B̄ — exact for the discrete system at O(M³) instead of O(N³).
 //!
@@ -27,6 +29,7 @@ pub mod direct;
 pub mod form_factor;
 pub mod hemicube;
 pub mod lighting;
+pub mod stochastic;
 
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
@@ -46,15 +49,17 @@ pub enum Method {
     Progressive,
     Jacobi,
     GaussSeidel,
+    StochasticJacobi,
     Direct,
 }
 
 impl Method {
     /// Every method, in the order `bench` compares them.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Progressive,
         Method::Jacobi,
         Method::GaussSeidel,
+        Method::StochasticJacobi,
         Method::Direct,
     ];
 
@@ -64,6 +69,7 @@ impl Method {
             Method::Progressive => "progressive",
             Method::Jacobi => "jacobi",
             Method::GaussSeidel => "gauss-seidel",
+            Method::StochasticJacobi => "stochastic-jacobi",
             Method::Direct => "direct",
         }
     }
@@ -81,7 +87,7 @@ impl std::str::FromStr for Method {
         Method::ALL
             .into_iter()
             .find(|m| m.name() == s || (s == "gs" && *m == Method::GaussSeidel))
-            .ok_or_else(|| format!("unknown method '{s}' (expected progressive, jacobi, gauss-seidel or direct)"))
+            .ok_or_else(|| format!("unknown method '{s}' (expected progressive, jacobi, gauss-seidel, stochastic-jacobi or direct)"))
     }
 }
 
@@ -97,6 +103,8 @@ pub struct SolverSettings {
     pub step_budget: Duration,
     /// Most bytes the form-factor cache may hold.
     pub cache_bytes: usize,
+    /// Rays per stochastic Jacobi iteration; `None` is 16 per element, at least 2¹⁸.
+    pub stochastic_rays: Option<usize>,
 }
 
 impl Default for SolverSettings {
@@ -109,6 +117,7 @@ impl Default for SolverSettings {
             form_factors: FormFactorSettings::default(),
             step_budget: Duration::from_millis(30),
             cache_bytes: 1 << 30,
+            stochastic_rays: None,
         }
     }
 }
@@ -180,6 +189,15 @@ enum Phase {
 
 type Sparse = Arc<[(u32, f32)]>;
 
+/// A stochastic Jacobi iteration split over several steps.
+struct Pending {
+    sources: stochastic::Sources,
+    rays: usize,
+    next_chunk: usize,
+    added: Vec<DVec3>,
+    arrived: f64,
+}
+
 /// A radiosity solve of one mesh.
 pub struct Solver {
     mesh: Arc<Mesh>,
@@ -201,6 +219,8 @@ pub struct Solver {
     rows: Vec<Sparse>,
     /// Reflectance per element (its patch's).
     reflectance: Vec<Vec3>,
+    /// The stochastic iteration under way.
+    pending: Option<Pending>,
     stats: Stats,
     shot_power: f64,
     captured_power: f64,
@@ -218,7 +238,8 @@ impl Solver {
     /// A solver for `mesh` with visibility from `bvh` and the scene's external `lights`.
     pub fn new(mesh: Arc<Mesh>, bvh: Arc<Bvh>, external: ExternalLight, settings: SolverSettings) -> Result<Solver, SolverError> {
         let (n, m) = (mesh.elements.len(), mesh.patches.len());
-        if settings.method != Method::Progressive && n.saturating_mul(m) > MAX_MATRIX_PAIRS {
+        let needs_matrix = matches!(settings.method, Method::Jacobi | Method::GaussSeidel | Method::Direct);
+        if needs_matrix && n.saturating_mul(m) > MAX_MATRIX_PAIRS {
             return Err(SolverError::TooLarge {
                 method: settings.method,
                 elements: n,
@@ -247,6 +268,7 @@ impl Solver {
             cache_used: 0,
             rows: Vec::new(),
             reflectance,
+            pending: None,
             stats: Stats {
                 method: Some(settings.method),
                 elements: n,
@@ -347,6 +369,7 @@ impl Solver {
                     Method::Progressive => self.shoot(),
                     Method::Jacobi => self.jacobi_sweep(),
                     Method::GaussSeidel => self.gauss_seidel_sweep(),
+                    Method::StochasticJacobi => self.stochastic_chunk(),
                     Method::Direct => self.direct_solve()?,
                 },
                 Phase::Done => break StepOutcome::Converged,
@@ -418,7 +441,7 @@ impl Solver {
             .map(|(s, e)| sum3(*s) * e.area as f64)
             .sum();
         self.phase = match self.settings.method {
-            Method::Progressive => Phase::Iterating,
+            Method::Progressive | Method::StochasticJacobi => Phase::Iterating,
             _ => Phase::Rows(0),
         };
         if self.stats.source_power <= 0.0 {
@@ -560,6 +583,67 @@ impl Solver {
         let shot_power = sum3d(shot) * p.area as f64;
         self.shot_power += shot_power;
         self.captured_power += captured / p.area as f64 * shot_power;
+        self.stats.energy_balance = Some(self.captured_power / self.shot_power);
+        self.stats.iterations += 1;
+    }
+
+    /// Traces a few chunks of the current stochastic iteration; finishes it when all its
+    /// rays are done.
+    fn stochastic_chunk(&mut self) {
+        let mesh = Arc::clone(&self.mesh);
+        let n = mesh.elements.len();
+        let pending = match self.pending.take() {
+            Some(p) => p,
+            None => {
+                let sources = stochastic::Sources::new(&mesh, &self.unshot);
+                let fraction = sources.total / self.stats.source_power;
+                self.stats.unshot_fraction = Some(fraction);
+                self.stats.residual = Some(fraction);
+                if fraction <= self.settings.tolerance {
+                    self.phase = Phase::Done;
+                    return;
+                }
+                Pending {
+                    sources,
+                    rays: self.settings.stochastic_rays.unwrap_or((16 * n).max(1 << 18)),
+                    next_chunk: 0,
+                    added: vec![DVec3::ZERO; n],
+                    arrived: 0.0,
+                }
+            }
+        };
+        let mut p = pending;
+        let chunks = p.rays.div_ceil(stochastic::CHUNK_RAYS);
+        let end = (p.next_chunk + 2 * rayon::current_num_threads().max(1)).min(chunks);
+        let iteration = self.stats.iterations;
+        let (bvh, refl, unshot, src, rays) = (&self.bvh, &self.reflectance, &self.unshot, &p.sources, p.rays);
+        let parts: Vec<stochastic::Deposits> = (p.next_chunk..end)
+            .into_par_iter()
+            .map(|c| {
+                let first = c * stochastic::CHUNK_RAYS;
+                let count = stochastic::CHUNK_RAYS.min(rays - first);
+                stochastic::trace_chunk(&mesh, bvh, refl, unshot, src, rays, first, count, iteration)
+            })
+            .collect();
+        for part in parts {
+            p.arrived += part.arrived;
+            for (j, add) in part.added {
+                p.added[j as usize] += add;
+            }
+        }
+        let traced = (end * stochastic::CHUNK_RAYS).min(p.rays) - p.next_chunk * stochastic::CHUNK_RAYS;
+        self.stats.rays += traced as u64;
+        p.next_chunk = end;
+        if end < chunks {
+            self.pending = Some(p);
+            return;
+        }
+        for (i, add) in p.added.iter().enumerate() {
+            self.radiosity[i] += *add;
+        }
+        self.unshot = p.added;
+        self.shot_power += p.sources.total;
+        self.captured_power += p.arrived;
         self.stats.energy_balance = Some(self.captured_power / self.shot_power);
         self.stats.iterations += 1;
     }

@@ -67,7 +67,11 @@ fn component(b: &[u8], ctype: u64, normalized: bool) -> f64 {
         }
         5122 => {
             let c = i16::from_le_bytes([b[0], b[1]]) as f64;
-            if normalized { (c / 32767.0).max(-1.0) } else { c }
+            if normalized {
+                (c / 32767.0).max(-1.0)
+            } else {
+                c
+            }
         }
         5123 => {
             let c = u16::from_le_bytes([b[0], b[1]]) as f64;
@@ -97,7 +101,9 @@ fn read_elements(
     let elem = (ncomp * csize) as u64;
     let stride = match stride {
         Some(s) if (s as u64) < elem => {
-            return Err(format!("byteStride {s} is smaller than an element ({elem} bytes)"));
+            return Err(format!(
+                "byteStride {s} is smaller than an element ({elem} bytes)"
+            ));
         }
         Some(s) => s as u64,
         None => elem,
@@ -130,7 +136,12 @@ fn read_elements(
 
 /// Decodes `accessors[i]`, whose `type` must be one of `types`. Integer component types
 /// are accepted (KHR_mesh_quantization); the caller checks integrality where it matters.
-pub(super) fn read(root: &Value, buffers: &Buffers<'_>, i: usize, types: &[&str]) -> Result<Accessor, String> {
+pub(super) fn read(
+    root: &Value,
+    buffers: &Buffers<'_>,
+    i: usize,
+    types: &[&str],
+) -> Result<Accessor, String> {
     let at = format!("accessors[{i}]");
     let err = |e: String| format!("{at}: {e}");
     let def = json::array(root, "accessors")?
@@ -139,14 +150,22 @@ pub(super) fn read(root: &Value, buffers: &Buffers<'_>, i: usize, types: &[&str]
     let ctype = json::uint(def, "componentType")
         .map_err(err)?
         .ok_or_else(|| err("no `componentType`".into()))?;
-    let csize = component_size(ctype).ok_or_else(|| err(format!("unknown componentType {ctype}")))?;
+    let csize =
+        component_size(ctype).ok_or_else(|| err(format!("unknown componentType {ctype}")))?;
     let ty = json::string(def, "type").map_err(err)?.unwrap_or("");
     if !types.contains(&ty) {
-        return Err(err(format!("type is '{ty}', expected {}", types.join(" or "))));
+        return Err(err(format!(
+            "type is '{ty}', expected {}",
+            types.join(" or ")
+        )));
     }
     let ncomp = type_components(ty).ok_or_else(|| err(format!("unknown type '{ty}'")))?;
-    let count = json::uint(def, "count").map_err(err)?.ok_or_else(|| err("no `count`".into()))?;
-    let normalized = json::boolean(def, "normalized").map_err(err)?.unwrap_or(false);
+    let count = json::uint(def, "count")
+        .map_err(err)?
+        .ok_or_else(|| err("no `count`".into()))?;
+    let normalized = json::boolean(def, "normalized")
+        .map_err(err)?
+        .unwrap_or(false);
     if normalized && ctype == 5126 {
         return Err(err("FLOAT components cannot be normalized".into()));
     }
@@ -156,20 +175,42 @@ pub(super) fn read(root: &Value, buffers: &Buffers<'_>, i: usize, types: &[&str]
     match json::index(def, "bufferView").map_err(err)? {
         Some(v) => {
             let view = view(root, buffers, v).map_err(err)?;
-            read_elements(view.bytes, offset, view.stride, count, ncomp, ctype, csize, normalized, &mut values)
-                .map_err(err)?;
+            read_elements(
+                view.bytes,
+                offset,
+                view.stride,
+                count,
+                ncomp,
+                ctype,
+                csize,
+                normalized,
+                &mut values,
+            )
+            .map_err(err)?;
         }
         None => {
             // §3.6.2.3: without a buffer view the accessor is all zeros (then sparse).
             if count > MAX_VIRTUAL_COUNT {
-                return Err(err(format!("count {count} is too large for an accessor without bufferView")));
+                return Err(err(format!(
+                    "count {count} is too large for an accessor without bufferView"
+                )));
             }
             values = vec![0.0; count as usize * ncomp];
         }
     }
     if let Some(sparse) = def.get("sparse") {
-        apply_sparse(root, buffers, sparse, count, ncomp, ctype, csize, normalized, &mut values)
-            .map_err(|e| err(format!("sparse: {e}")))?;
+        apply_sparse(
+            root,
+            buffers,
+            sparse,
+            count,
+            ncomp,
+            ctype,
+            csize,
+            normalized,
+            &mut values,
+        )
+        .map_err(|e| err(format!("sparse: {e}")))?;
     }
     Ok(Accessor { ncomp, values })
 }
@@ -195,19 +236,49 @@ fn apply_sparse(
     let val = sparse.get("values").ok_or("no `values`")?;
     let ictype = json::uint(idx, "componentType")?.ok_or("indices: no `componentType`")?;
     if !matches!(ictype, 5121 | 5123 | 5125) {
-        return Err(format!("indices: componentType {ictype} is not an unsigned integer type"));
+        return Err(format!(
+            "indices: componentType {ictype} is not an unsigned integer type"
+        ));
     }
     let isize = component_size(ictype).unwrap_or(4);
-    let iview = view(root, buffers, json::index(idx, "bufferView")?.ok_or("indices: no `bufferView`")?)?;
-    let vview = view(root, buffers, json::index(val, "bufferView")?.ok_or("values: no `bufferView`")?)?;
+    let iview = view(
+        root,
+        buffers,
+        json::index(idx, "bufferView")?.ok_or("indices: no `bufferView`")?,
+    )?;
+    let vview = view(
+        root,
+        buffers,
+        json::index(val, "bufferView")?.ok_or("values: no `bufferView`")?,
+    )?;
     let mut indices = Vec::new();
     let ioff = json::uint(idx, "byteOffset")?.unwrap_or(0);
-    read_elements(iview.bytes, ioff, None, n, 1, ictype, isize, false, &mut indices)
-        .map_err(|e| format!("indices: {e}"))?;
+    read_elements(
+        iview.bytes,
+        ioff,
+        None,
+        n,
+        1,
+        ictype,
+        isize,
+        false,
+        &mut indices,
+    )
+    .map_err(|e| format!("indices: {e}"))?;
     let mut subst = Vec::new();
     let voff = json::uint(val, "byteOffset")?.unwrap_or(0);
-    read_elements(vview.bytes, voff, None, n, ncomp, ctype, csize, normalized, &mut subst)
-        .map_err(|e| format!("values: {e}"))?;
+    read_elements(
+        vview.bytes,
+        voff,
+        None,
+        n,
+        ncomp,
+        ctype,
+        csize,
+        normalized,
+        &mut subst,
+    )
+    .map_err(|e| format!("values: {e}"))?;
     for (k, &target) in indices.iter().enumerate() {
         if target >= count as f64 {
             return Err(format!("index {target} is out of range (count {count})"));
@@ -219,12 +290,18 @@ fn apply_sparse(
 }
 
 /// Decodes an index accessor (`SCALAR` of UNSIGNED_BYTE / SHORT / INT, §3.7.2.1).
-pub(super) fn read_indices(root: &Value, buffers: &Buffers<'_>, i: usize) -> Result<Vec<u32>, String> {
+pub(super) fn read_indices(
+    root: &Value,
+    buffers: &Buffers<'_>,
+    i: usize,
+) -> Result<Vec<u32>, String> {
     let def = json::array(root, "accessors")?
         .get(i)
         .ok_or_else(|| format!("accessors[{i}] does not exist"))?;
     let ctype = json::uint(def, "componentType").ok().flatten().unwrap_or(0);
-    if !matches!(ctype, 5121 | 5123 | 5125) || json::boolean(def, "normalized").ok().flatten() == Some(true) {
+    if !matches!(ctype, 5121 | 5123 | 5125)
+        || json::boolean(def, "normalized").ok().flatten() == Some(true)
+    {
         return Err(format!(
             "accessors[{i}]: indices must be UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT, not componentType {ctype}"
         ));

@@ -34,9 +34,12 @@ pub(super) fn as_uint(v: &Value) -> Option<u64> {
 pub(super) fn uint(obj: &Value, key: &str) -> Result<Option<u64>, String> {
     match obj.get(key) {
         None | Some(Value::Null) => Ok(None),
-        Some(v) => as_uint(v)
-            .map(Some)
-            .ok_or_else(|| format!("`{key}` must be a non-negative integer, found {}", describe(v))),
+        Some(v) => as_uint(v).map(Some).ok_or_else(|| {
+            format!(
+                "`{key}` must be a non-negative integer, found {}",
+                describe(v)
+            )
+        }),
     }
 }
 
@@ -92,7 +95,12 @@ pub(super) fn numbers<const N: usize>(obj: &Value, key: &str) -> Result<Option<[
     let Some(v) = obj.get(key) else {
         return Ok(None);
     };
-    let bad = || format!("`{key}` must be an array of {N} numbers, found {}", describe(v));
+    let bad = || {
+        format!(
+            "`{key}` must be an array of {N} numbers, found {}",
+            describe(v)
+        )
+    };
     let a = v.as_array().ok_or_else(bad)?;
     if a.len() != N {
         return Err(bad());
@@ -111,5 +119,7 @@ pub(super) fn extension<'a>(obj: &'a Value, name: &str) -> Option<&'a Value> {
 
 /// The `name` property of an object, when it is a non-empty string.
 pub(super) fn name(obj: &Value) -> Option<&str> {
-    obj.get("name").and_then(Value::as_str).filter(|s| !s.is_empty())
+    obj.get("name")
+        .and_then(Value::as_str)
+        .filter(|s| !s.is_empty())
 }

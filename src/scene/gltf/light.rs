@@ -47,7 +47,9 @@ pub(super) fn definitions(root: &Value) -> Vec<Result<LightDef, String>> {
 fn definition(def: &Value) -> Result<LightDef, String> {
     let color = json::numbers::<3>(def, "color")?.unwrap_or([1.0; 3]);
     if color.iter().any(|c| !c.is_finite() || *c < 0.0) {
-        return Err(format!("color {color:?} has a negative or non-finite component"));
+        return Err(format!(
+            "color {color:?} has a negative or non-finite component"
+        ));
     }
     let intensity = json::number(def, "intensity")?.unwrap_or(1.0);
     if !intensity.is_finite() || intensity < 0.0 {
@@ -65,7 +67,8 @@ fn definition(def: &Value) -> Result<LightDef, String> {
         Some("spot") => {
             let spot = def.get("spot").cloned().unwrap_or(Value::Null);
             let inner = json::number(&spot, "innerConeAngle")?.unwrap_or(0.0);
-            let outer = json::number(&spot, "outerConeAngle")?.unwrap_or(std::f64::consts::FRAC_PI_4);
+            let outer =
+                json::number(&spot, "outerConeAngle")?.unwrap_or(std::f64::consts::FRAC_PI_4);
             if !(0.0 <= inner && inner < outer && outer <= std::f64::consts::FRAC_PI_2) {
                 return Err(format!(
                     "spot cone angles inner {inner}, outer {outer} do not satisfy 0 ≤ inner < outer ≤ π/2"
@@ -81,7 +84,11 @@ fn definition(def: &Value) -> Result<LightDef, String> {
         (color[1] * intensity) as f32,
         (color[2] * intensity) as f32,
     );
-    Ok(LightDef { kind, radiant, range })
+    Ok(LightDef {
+        kind,
+        radiant,
+        range,
+    })
 }
 
 /// Places a light definition with the node's `world_from_local`.

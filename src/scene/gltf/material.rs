@@ -64,7 +64,10 @@ pub(super) fn default_material() -> (Material, MatInfo) {
         base_alpha: 1.0,
         transmission: 0.0,
     };
-    (Material::diffuse("default", Vec3::splat(MAX_REFLECTANCE)), info)
+    (
+        Material::diffuse("default", Vec3::splat(MAX_REFLECTANCE)),
+        info,
+    )
 }
 
 /// Replaces NaN and negative components by 0; says whether any was replaced.
@@ -80,8 +83,15 @@ fn sanitize(v: &mut [f64]) -> bool {
 }
 
 /// Converts `materials[i]`. Problems are recorded in `warn`; the result is always usable.
-pub(super) fn convert(root: &Value, i: usize, def: &Value, warn: &mut Warnings) -> (Material, MatInfo) {
-    let name = json::name(def).map(str::to_string).unwrap_or_else(|| format!("material {i}"));
+pub(super) fn convert(
+    root: &Value,
+    i: usize,
+    def: &Value,
+    warn: &mut Warnings,
+) -> (Material, MatInfo) {
+    let name = json::name(def)
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("material {i}"));
     let at = format!("materials[{i}] ('{name}')");
     let mut w = |m: String| warn.line(format!("{at}: {m}"));
     let pbr = def.get("pbrMetallicRoughness").filter(|v| v.is_object());
@@ -100,7 +110,8 @@ pub(super) fn convert(root: &Value, i: usize, def: &Value, warn: &mut Warnings) 
     if base[..3].iter().any(|&c| c > 1.0) {
         warn.clamped_reflectance.push(name.clone());
     }
-    let reflectance = Vec3::new(base[0] as f32, base[1] as f32, base[2] as f32).clamp(Vec3::ZERO, Vec3::splat(MAX_REFLECTANCE));
+    let reflectance = Vec3::new(base[0] as f32, base[1] as f32, base[2] as f32)
+        .clamp(Vec3::ZERO, Vec3::splat(MAX_REFLECTANCE));
     let base_alpha = base[3].min(1.0) as f32;
     let mut w = |m: String| warn.line(format!("{at}: {m}"));
 
@@ -119,7 +130,9 @@ pub(super) fn convert(root: &Value, i: usize, def: &Value, warn: &mut Warnings) 
         match json::number(ext, "emissiveStrength") {
             Ok(Some(s)) if s.is_finite() && s >= 0.0 => strength = s,
             Ok(None) => {}
-            Ok(Some(s)) => w(format!("emissiveStrength {s} is invalid (must be ≥ 0); using 1")),
+            Ok(Some(s)) => w(format!(
+                "emissiveStrength {s} is invalid (must be ≥ 0); using 1"
+            )),
             Err(e) => w(format!("KHR_materials_emissive_strength: {e}; using 1")),
         }
     }
@@ -186,7 +199,10 @@ pub(super) fn convert(root: &Value, i: usize, def: &Value, warn: &mut Warnings) 
             }
         }
     };
-    let base_tex = tex(pbr.and_then(|p| p.get("baseColorTexture")), "baseColorTexture");
+    let base_tex = tex(
+        pbr.and_then(|p| p.get("baseColorTexture")),
+        "baseColorTexture",
+    );
     let emissive_tex = if emission.max_element() > 0.0 {
         tex(def.get("emissiveTexture"), "emissiveTexture")
     } else {

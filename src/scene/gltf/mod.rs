@@ -2,11 +2,11 @@
 //!
 //! The importer reads `.gltf` (JSON with external or `data:` buffers and images) and `.glb`
 //! (JSON + BIN chunk) files. It walks the JSON itself (`serde_json::Value`, see
-//! [`json`]) rather than through the `gltf` crate: that crate's typed schema rejects valid
+//! `json.rs`) rather than through the `gltf` crate: that crate's typed schema rejects valid
 //! files (a scene without `nodes`, integers written as `1.0`, `KHR_mesh_quantization`,
 //! textures whose image is missing) and panics on some invalid ones, and a viewer must
 //! neither refuse the former nor crash on the latter. Every accessor read is
-//! bounds-checked ([`accessor`]); the whole load still runs under `catch_unwind`, so a bug
+//! bounds-checked (`accessor.rs`); the whole load still runs under `catch_unwind`, so a bug
 //! becomes a [`LoadError`] rather than a crash.
 //!
 //! What comes out (DESIGN.md §4):
@@ -20,10 +20,10 @@
 //! - triangles from modes 4, 5 and 6 (strips and fans unrolled per §3.7.2.1); points and
 //!   lines are skipped. Triangles with out-of-range indices, non-finite vertices or zero
 //!   area (in world space) are dropped, each kind counted in one warning;
-//! - materials per [`material`]; per-triangle means of base-colour and emissive textures
+//! - materials per `material.rs`; per-triangle means of base-colour and emissive textures
 //!   (and of `COLOR_0`) in `Object::reflectance_tint` / `emission_tint`, alpha coverage in
-//!   `Object::transmittance` ([`texture`]);
-//! - `KHR_lights_punctual` lights placed by their nodes ([`light`]).
+//!   `Object::transmittance` (`texture.rs`);
+//! - `KHR_lights_punctual` lights placed by their nodes (`light.rs`).
 //!
 //! Every recovered problem is one line in `Scene::warnings`, starting with the file path.
 //! Nothing here adds a default light: the caller decides (`Scene::ensure_light`).
@@ -34,20 +34,23 @@ mod light;
 mod material;
 mod source;
 mod texture;
+mod tint;
+mod warnings;
 mod write;
 
 pub use write::write_gltf;
 
 use crate::scene::{Light, Material, Object, Scene};
 use glam::{DMat4, DQuat, DVec3, Vec2, Vec3};
-use material::{AlphaMode, MatInfo};
+use material::MatInfo;
 use serde_json::Value;
 use source::Buffers;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::panic::AssertUnwindSafe;
 use std::path::Path;
 use std::rc::Rc;
-use texture::Pyramid;
+use tint::TexJob;
+use warnings::Warnings;
 
 /// Why a glTF file could not be loaded. Its `Display` is one line: the file, then the problem.
 #[derive(Debug, thiserror::Error)]
@@ -97,9 +100,6 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_mesh_quantization",
 ];
 
-/// Largest number of distinct warning lines kept per file; the rest are counted.
-const MAX_WARNING_LINES: usize = 40;
-
 /// Loads a glTF 2.0 scene (`.gltf` or `.glb`) from `path`.
 ///
 /// Recoverable problems become lines in `Scene::warnings`; unrecoverable ones a
@@ -130,106 +130,6 @@ pub fn load(path: &Path) -> Result<Scene, LoadError> {
 /// Collapses a message to one line.
 fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Warning lines for one file, deduplicated and capped, plus per-kind counters.
-pub(super) struct Warnings {
-    path: String,
-    lines: Vec<String>,
-    dropped_lines: usize,
-    /// Names of materials whose base colour exceeded 1 (reported in one line).
-    pub clamped_reflectance: Vec<String>,
-    /// Emission factors above 1 (allowed here as HDR; the spec says [0, 1]).
-    pub hdr_emission: Vec<String>,
-    /// Primitives of mode 0–3 (points, lines).
-    pub skipped_points_lines: usize,
-    /// Triangles dropped because an index is ≥ the vertex count.
-    pub out_of_range: usize,
-    /// Triangles dropped because a vertex is NaN or infinite (locally or after transform).
-    pub non_finite: usize,
-    /// Triangles dropped because their world-space area is zero.
-    pub degenerate: usize,
-    /// Nodes reached a second time (a cycle or a node with two parents).
-    pub revisited_nodes: usize,
-    /// Nodes with a skin (drawn unskinned).
-    pub skinned: usize,
-}
-
-impl Warnings {
-    fn new(path: &str) -> Self {
-        Warnings {
-            path: path.to_string(),
-            lines: Vec::new(),
-            dropped_lines: 0,
-            clamped_reflectance: Vec::new(),
-            hdr_emission: Vec::new(),
-            skipped_points_lines: 0,
-            out_of_range: 0,
-            non_finite: 0,
-            degenerate: 0,
-            revisited_nodes: 0,
-            skinned: 0,
-        }
-    }
-
-    /// Records one warning (the file path is prefixed here).
-    pub fn line(&mut self, message: String) {
-        let line = format!("{}: {}", self.path, one_line(&message));
-        if self.lines.contains(&line) {
-            return;
-        }
-        if self.lines.len() < MAX_WARNING_LINES {
-            self.lines.push(line);
-        } else {
-            self.dropped_lines += 1;
-        }
-    }
-
-    fn finish(mut self) -> Vec<String> {
-        let list = |names: &[String]| {
-            let mut s = names.iter().take(5).map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ");
-            if names.len() > 5 {
-                s += &format!(" and {} more", names.len() - 5);
-            }
-            s
-        };
-        let mut tail = Vec::new();
-        if !self.clamped_reflectance.is_empty() {
-            tail.push(format!(
-                "baseColorFactor above 1 clamped to {} (reflectance must stay below 1) in {} material(s): {}",
-                material::MAX_REFLECTANCE,
-                self.clamped_reflectance.len(),
-                list(&self.clamped_reflectance)
-            ));
-        }
-        if !self.hdr_emission.is_empty() {
-            tail.push(format!(
-                "emissiveFactor above 1 (outside the spec's [0, 1]) used as given in: {}",
-                list(&self.hdr_emission)
-            ));
-        }
-        let counted = [
-            (self.skipped_points_lines, "point/line primitive(s) skipped (only triangles are used)"),
-            (self.out_of_range, "triangle(s) with vertex indices out of range dropped"),
-            (self.non_finite, "triangle(s) with NaN or infinite vertex positions dropped"),
-            (self.degenerate, "zero-area triangle(s) dropped"),
-            (self.revisited_nodes, "node(s) reached more than once (a cycle or two parents) visited only once"),
-            (self.skinned, "skinned node(s) drawn in their bind pose (skinning is ignored)"),
-        ];
-        for (n, what) in counted {
-            if n > 0 {
-                tail.push(format!("{n} {what}"));
-            }
-        }
-        for t in tail {
-            self.lines.push(format!("{}: {}", self.path, t));
-        }
-        if self.dropped_lines > 0 {
-            self.lines
-                .push(format!("{}: … and {} more warnings", self.path, self.dropped_lines));
-        }
-        self.lines
-    }
 }
 
 fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError> {
@@ -264,7 +164,9 @@ fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError>
     if let Some(min) = root["asset"].get("minVersion").and_then(Value::as_str)
         && min != "2.0"
     {
-        return Err(unsupported(format!("the file needs glTF {min}; only 2.0 is supported")));
+        return Err(unsupported(format!(
+            "the file needs glTF {min}; only 2.0 is supported"
+        )));
     }
     for ext in json::array(&root, "extensionsRequired").map_err(invalid)? {
         let ext = ext.as_str().unwrap_or("?");
@@ -280,7 +182,15 @@ fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError>
         }
     }
     // The top-level arrays must be arrays; a wrong type there is not worth guessing around.
-    for key in ["nodes", "meshes", "accessors", "bufferViews", "buffers", "materials", "scenes"] {
+    for key in [
+        "nodes",
+        "meshes",
+        "accessors",
+        "bufferViews",
+        "buffers",
+        "materials",
+        "scenes",
+    ] {
         json::array(&root, key).map_err(invalid)?;
     }
     let buffers_def = json::array(&root, "buffers").unwrap_or(&[]);
@@ -323,25 +233,6 @@ fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError>
     })
 }
 
-/// UV triangles of one primitive's kept triangles, for the texture pass.
-struct TexJob {
-    /// Index into `Loader::objects`.
-    object: usize,
-    /// First triangle of this primitive in that object.
-    first: usize,
-    /// Material index (into `Loader::infos`).
-    material: usize,
-    /// Per TEXCOORD set used: the UVs of each triangle's three corners.
-    uv_sets: Vec<(u32, Vec<[Vec2; 3]>)>,
-}
-
-/// Which texture of a material a job samples.
-#[derive(Clone, Copy, PartialEq)]
-enum Slot {
-    Base,
-    Emissive,
-}
-
 struct Loader<'a> {
     root: &'a Value,
     dir: &'a Path,
@@ -365,15 +256,38 @@ impl Loader<'_> {
         let root = self.root;
         for (i, def) in json::array(root, "materials")?.iter().enumerate() {
             let (m, info) = material::convert(root, i, def, &mut self.warn);
-            if m.emission.max_element() > 1.0 && json::extension(def, "KHR_materials_emissive_strength").is_none() {
+            if m.emission.max_element() > 1.0
+                && json::extension(def, "KHR_materials_emissive_strength").is_none()
+            {
                 self.warn.hdr_emission.push(m.name.clone());
             }
             self.materials.push(m);
             self.infos.push(info);
         }
+        // Dangling texture → image references are reported even when no material uses them.
+        let images = json::array(root, "images").map(<[Value]>::len).unwrap_or(0);
+        for (t, tex) in json::array(root, "textures")
+            .unwrap_or(&[])
+            .iter()
+            .enumerate()
+        {
+            if let Ok(Some(i)) = json::index(tex, "source")
+                && i >= images
+            {
+                self.warn.line(format!("textures[{t}]: its image {i} does not exist (the file has {images} images); untextured"));
+            }
+        }
         self.traverse()?;
-        self.apply_textures()?;
-        Ok(())
+        tint::apply_textures(
+            self.root,
+            &self.buffers,
+            self.dir,
+            &self.jobs,
+            &self.infos,
+            &self.materials,
+            &mut self.objects,
+            &mut self.warn,
+        )
     }
 
     /// The root nodes to draw: the `scene`'s, else scene 0's, else every parentless node.
@@ -385,7 +299,8 @@ impl Loader<'_> {
             Ok(Some(s)) if s < scenes.len() => Some(s),
             Ok(Some(s)) => {
                 if !scenes.is_empty() {
-                    self.warn.line(format!("`scene` {s} does not exist; using scene 0"));
+                    self.warn
+                        .line(format!("`scene` {s} does not exist; using scene 0"));
                 }
                 (!scenes.is_empty()).then_some(0)
             }
@@ -401,7 +316,10 @@ impl Loader<'_> {
             for v in list {
                 match json::as_uint(v) {
                     Some(n) => out.push(n as usize),
-                    None => self.warn.line(format!("scenes[{s}].nodes: {} is not a node index", json::describe(v))),
+                    None => self.warn.line(format!(
+                        "scenes[{s}].nodes: {} is not a node index",
+                        json::describe(v)
+                    )),
                 }
             }
             return Ok(out);
@@ -443,7 +361,8 @@ impl Loader<'_> {
             let local = match node_transform(node) {
                 Ok(m) => m,
                 Err(e) => {
-                    self.warn.line(format!("nodes[{n}]: {e}; node and its children skipped"));
+                    self.warn
+                        .line(format!("nodes[{n}]: {e}; node and its children skipped"));
                     continue;
                 }
             };
@@ -464,7 +383,10 @@ impl Loader<'_> {
                     for c in children.iter().rev() {
                         match json::as_uint(c) {
                             Some(c) => stack.push((c as usize, world)),
-                            None => self.warn.line(format!("nodes[{n}].children: {} is not a node index", json::describe(c))),
+                            None => self.warn.line(format!(
+                                "nodes[{n}].children: {} is not a node index",
+                                json::describe(c)
+                            )),
                         }
                     }
                 }
@@ -482,8 +404,12 @@ impl Loader<'_> {
             Err(e) => return self.warn.line(format!("{at}: {e}; skipped")),
         };
         match self.light_defs.get(l) {
-            None => self.warn.line(format!("{at}: light {l} does not exist; skipped")),
-            Some(Err(e)) => self.warn.line(format!("KHR_lights_punctual light {l}: {e}; skipped")),
+            None => self
+                .warn
+                .line(format!("{at}: light {l} does not exist; skipped")),
+            Some(Err(e)) => self
+                .warn
+                .line(format!("KHR_lights_punctual light {l}: {e}; skipped")),
             Some(Ok(def)) => match light::place(def, world) {
                 Ok(light) => self.lights.push(light),
                 Err(e) => self.warn.line(format!("{at}: light {l} skipped: {e}")),
@@ -494,7 +420,8 @@ impl Loader<'_> {
     fn add_mesh(&mut self, n: usize, node: &Value, m: usize, world: DMat4) -> Result<(), String> {
         let root = self.root;
         let Some(mesh) = json::array(root, "meshes")?.get(m) else {
-            self.warn.line(format!("nodes[{n}]: mesh {m} does not exist; skipped"));
+            self.warn
+                .line(format!("nodes[{n}]: mesh {m} does not exist; skipped"));
             return Ok(());
         };
         let name = json::name(node)
@@ -524,7 +451,9 @@ impl Loader<'_> {
                 return Err(fatal);
             }
             if let Err(e) = result {
-                self.warn.line(format!("meshes[{m}].primitives[{p}]: {e}; primitive skipped"));
+                self.warn.line(format!(
+                    "meshes[{m}].primitives[{p}]: {e}; primitive skipped"
+                ));
             }
         }
         if !object.triangles.is_empty() {
@@ -552,7 +481,12 @@ impl Loader<'_> {
     }
 
     /// Appends one primitive's valid triangles to `object`.
-    fn add_primitive(&mut self, object: &mut Object, prim: &Value, weights: &[f64]) -> Result<(), String> {
+    fn add_primitive(
+        &mut self,
+        object: &mut Object,
+        prim: &Value,
+        weights: &[f64],
+    ) -> Result<(), String> {
         let root = self.root;
         let mode = json::uint(prim, "mode")?.unwrap_or(4);
         match mode {
@@ -586,7 +520,9 @@ impl Loader<'_> {
         let len = indices.as_ref().map_or(n, Vec::len);
         // §3.7.2.1: strips p_i = {v_i, v_(i+(1+i%2)), v_(i+(2−i%2))}; fans p_i = {v_(i+1), v_(i+2), v_0}.
         let corners: Vec<[u32; 3]> = match mode {
-            4 => (0..len / 3).map(|t| [vertex(3 * t), vertex(3 * t + 1), vertex(3 * t + 2)]).collect(),
+            4 => (0..len / 3)
+                .map(|t| [vertex(3 * t), vertex(3 * t + 1), vertex(3 * t + 2)])
+                .collect(),
             5 => (0..len.saturating_sub(2))
                 .map(|i| [vertex(i), vertex(i + 1 + i % 2), vertex(i + 2 - i % 2)])
                 .collect(),
@@ -596,7 +532,10 @@ impl Loader<'_> {
         };
 
         let world = object.world_from_local;
-        let world_pos: Vec<DVec3> = positions.iter().map(|p| world.transform_point3(p.as_dvec3())).collect();
+        let world_pos: Vec<DVec3> = positions
+            .iter()
+            .map(|p| world.transform_point3(p.as_dvec3()))
+            .collect();
         let mut kept: Vec<[u32; 3]> = Vec::with_capacity(corners.len());
         for t in corners {
             if t.iter().any(|&v| v as usize >= n) {
@@ -611,8 +550,12 @@ impl Loader<'_> {
             // Zero area: the cross product vanishes relative to the longest edge. 1e-12 is
             // far above f64 rounding of f32 inputs (~1e-16) and far below any real sliver.
             let cross = (b - a).cross(c - a).length();
-            let longest = (b - a).length_squared().max((c - a).length_squared()).max((c - b).length_squared());
-            if !(cross > 1e-12 * longest) {
+            let longest = (b - a)
+                .length_squared()
+                .max((c - a).length_squared())
+                .max((c - b).length_squared());
+            let has_area = cross > 1e-12 * longest; // false for NaN too
+            if !has_area {
                 self.warn.degenerate += 1;
                 continue;
             }
@@ -659,7 +602,9 @@ impl Loader<'_> {
                         tint[first + k] = (sum / 3.0).clamp(Vec3::ZERO, Vec3::ONE);
                     }
                 }
-                Ok(_) => self.warn.line(format!("accessors[{ci}]: COLOR_0 has fewer elements than POSITION; ignored")),
+                Ok(_) => self.warn.line(format!(
+                    "accessors[{ci}]: COLOR_0 has fewer elements than POSITION; ignored"
+                )),
                 Err(e) => self.warn.line(format!("COLOR_0: {e}; ignored")),
             }
         }
@@ -676,8 +621,11 @@ impl Loader<'_> {
         for set in sets {
             let key = format!("TEXCOORD_{set}");
             let uvs = match json::index(attrs, &key)? {
-                Some(a) => accessor::read(root, &self.buffers, a, &["VEC2"])
-                    .and_then(|a| (a.count() >= n).then_some(a).ok_or_else(|| "fewer elements than POSITION".into())),
+                Some(a) => accessor::read(root, &self.buffers, a, &["VEC2"]).and_then(|a| {
+                    (a.count() >= n)
+                        .then_some(a)
+                        .ok_or_else(|| "fewer elements than POSITION".into())
+                }),
                 None => Err("missing".to_string()),
             };
             match uvs {
@@ -730,9 +678,13 @@ impl Loader<'_> {
     fn material_for(&mut self, prim: &Value) -> u32 {
         match json::index(prim, "material") {
             Ok(Some(m)) if m < self.infos.len() => return m as u32,
-            Ok(Some(m)) => self.warn.line(format!("material {m} does not exist; the default material is used")),
+            Ok(Some(m)) => self.warn.line(format!(
+                "material {m} does not exist; the default material is used"
+            )),
             Ok(None) => {}
-            Err(e) => self.warn.line(format!("primitive {e}; the default material is used")),
+            Err(e) => self
+                .warn
+                .line(format!("primitive {e}; the default material is used")),
         }
         *self.default_material.get_or_insert_with(|| {
             let (m, info) = material::default_material();
@@ -740,97 +692,6 @@ impl Loader<'_> {
             self.infos.push(info);
             (self.materials.len() - 1) as u32
         })
-    }
-
-    /// Decodes each used image once and turns it into per-triangle factors.
-    fn apply_textures(&mut self) -> Result<(), String> {
-        let mut by_image: BTreeMap<usize, Vec<(usize, Slot)>> = BTreeMap::new();
-        for (j, job) in self.jobs.iter().enumerate() {
-            let info = &self.infos[job.material];
-            if let Some(t) = &info.base_tex {
-                by_image.entry(t.image).or_default().push((j, Slot::Base));
-            }
-            if let Some(t) = &info.emissive_tex {
-                by_image.entry(t.image).or_default().push((j, Slot::Emissive));
-            }
-        }
-        for (image, uses) in by_image {
-            let decoded = texture::image_bytes(self.root, &self.buffers, self.dir, image).and_then(|b| Pyramid::decode(&b));
-            if let Some(fatal) = self.buffers.failure() {
-                return Err(fatal);
-            }
-            let pyramid = match decoded {
-                Ok(p) => p,
-                Err(e) => {
-                    let uri = self.root["images"][image]["uri"].as_str().filter(|u| !u.starts_with("data:"));
-                    let what = uri.map(|u| format!(" ('{u}')")).unwrap_or_default();
-                    self.warn.line(format!("images[{image}]{what}: {e}; surfaces using it are untextured"));
-                    continue;
-                }
-            };
-            let mut coverage: Vec<(f32, Pyramid)> = Vec::new();
-            for (j, slot) in uses {
-                self.apply_job(j, slot, &pyramid, &mut coverage);
-            }
-        }
-        Ok(())
-    }
-
-    fn apply_job(&mut self, j: usize, slot: Slot, pyramid: &Pyramid, coverage: &mut Vec<(f32, Pyramid)>) {
-        let job = &self.jobs[j];
-        let info = &self.infos[job.material];
-        let tref = match slot {
-            Slot::Base => info.base_tex.as_ref(),
-            Slot::Emissive => info.emissive_tex.as_ref(),
-        };
-        let Some(tref) = tref else { return };
-        let Some((_, uvs)) = job.uv_sets.iter().find(|(s, _)| *s == tref.tex_coord) else {
-            return;
-        };
-        let object = &mut self.objects[job.object];
-        let count = object.triangles.len();
-        // Alpha coverage per MASK triangle: the fraction of texels with
-        // baseColorFactor.a × texture alpha ≥ alphaCutoff, i.e. texture alpha ≥ cutoff / factor.
-        let mask_pyramid = match (slot, info.alpha_mode) {
-            (Slot::Base, AlphaMode::Mask(cutoff)) => {
-                let threshold = if info.base_alpha > 0.0 { cutoff / info.base_alpha } else { f32::INFINITY };
-                let at = match coverage.iter().position(|(t, _)| *t == threshold) {
-                    Some(k) => k,
-                    None => {
-                        coverage.push((threshold, pyramid.coverage(threshold)));
-                        coverage.len() - 1
-                    }
-                };
-                Some(&coverage[at].1)
-            }
-            _ => None,
-        };
-        let needs_alpha = slot == Slot::Base && info.alpha_mode != AlphaMode::Opaque;
-        if needs_alpha && object.transmittance.len() != count {
-            let materials = &self.materials;
-            object.transmittance = object
-                .triangle_material
-                .iter()
-                .map(|&m| materials[m as usize].transmittance)
-                .collect();
-        }
-        let tint = match slot {
-            Slot::Base => &mut object.reflectance_tint,
-            Slot::Emissive => &mut object.emission_tint,
-        };
-        tint.resize(count, Vec3::ONE);
-        for (k, uv) in uvs.iter().enumerate() {
-            let t = job.first + k;
-            let uv = uv.map(|p| texture::transform_uv(tref, p));
-            let mean = pyramid.triangle_mean(uv, tref.wrap);
-            tint[t] *= Vec3::new(mean[0], mean[1], mean[2]);
-            if let Some(mask) = mask_pyramid {
-                let cov = mask.triangle_mean(uv, tref.wrap)[0];
-                object.transmittance[t] = info.transmittance(cov);
-            } else if needs_alpha {
-                object.transmittance[t] = info.transmittance(info.base_alpha * mean[3]);
-            }
-        }
     }
 }
 

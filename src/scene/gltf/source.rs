@@ -32,14 +32,23 @@ pub(super) fn split(bytes: &[u8]) -> Result<Container<'_>, String> {
     if !bytes.starts_with(b"glTF") {
         let mut json = bytes;
         if let Some(rest) = json.strip_prefix(b"\xEF\xBB\xBF".as_slice()) {
-            notes.push("the JSON starts with a UTF-8 byte-order mark (not allowed by the spec); ignored".into());
+            notes.push(
+                "the JSON starts with a UTF-8 byte-order mark (not allowed by the spec); ignored"
+                    .into(),
+            );
             json = rest;
         }
-        return Ok(Container { json, bin: None, notes });
+        return Ok(Container {
+            json,
+            bin: None,
+            notes,
+        });
     }
     let version = le_u32(bytes, 4).ok_or("GLB header is truncated")?;
     if version != 2 {
-        return Err(format!("GLB container version {version} is not supported (only glTF 2.0)"));
+        return Err(format!(
+            "GLB container version {version} is not supported (only glTF 2.0)"
+        ));
     }
     let length = le_u32(bytes, 8).ok_or("GLB header is truncated")? as usize;
     if length > bytes.len() {
@@ -49,7 +58,9 @@ pub(super) fn split(bytes: &[u8]) -> Result<Container<'_>, String> {
         ));
     }
     if length < 12 {
-        return Err(format!("GLB header gives an impossible length of {length} bytes"));
+        return Err(format!(
+            "GLB header gives an impossible length of {length} bytes"
+        ));
     }
     let body = &bytes[..length];
     let mut at = 12usize;
@@ -64,7 +75,9 @@ pub(super) fn split(bytes: &[u8]) -> Result<Container<'_>, String> {
         let end = start
             .checked_add(len as usize)
             .filter(|&e| e <= body.len())
-            .ok_or_else(|| format!("GLB chunk {index} ({len} bytes) runs past the end of the file"))?;
+            .ok_or_else(|| {
+                format!("GLB chunk {index} ({len} bytes) runs past the end of the file")
+            })?;
         let data = &body[start..end];
         match kind {
             CHUNK_JSON if index == 0 => json = Some(data),
@@ -80,7 +93,15 @@ pub(super) fn split(bytes: &[u8]) -> Result<Container<'_>, String> {
     let json = json.ok_or("GLB file has no JSON chunk")?;
     // The JSON chunk is padded with spaces; tolerate NUL padding too.
     let trimmed = json.len() - json.iter().rev().take_while(|&&c| c == 0).count();
-    Ok(Container { json: &json[..trimmed], bin, notes })
+    let mut json = &json[..trimmed];
+    if let Some(rest) = json.strip_prefix(b"\xEF\xBB\xBF".as_slice()) {
+        notes.push(
+            "the JSON chunk starts with a UTF-8 byte-order mark (not allowed by the spec); ignored"
+                .into(),
+        );
+        json = rest;
+    }
+    Ok(Container { json, bin, notes })
 }
 
 /// Decodes `%XX` escapes of a URI into bytes (RFC 3986 §2.1); other bytes pass through.
@@ -126,7 +147,10 @@ pub(super) fn resolve_uri(dir: &Path, uri: &str) -> Result<Target, String> {
                     .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent)
                     .with_decode_allow_trailing_bits(true),
             );
-            let clean: String = payload.chars().filter(|c| !c.is_ascii_whitespace()).collect();
+            let clean: String = payload
+                .chars()
+                .filter(|c| !c.is_ascii_whitespace())
+                .collect();
             return engine
                 .decode(clean.as_bytes())
                 .map(Target::Data)
@@ -138,16 +162,22 @@ pub(super) fn resolve_uri(dir: &Path, uri: &str) -> Result<Target, String> {
     if let Some(colon) = uri.find(':') {
         let scheme = &uri[..colon];
         if !scheme.is_empty()
-            && scheme.chars().all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+            && scheme
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
             && scheme.starts_with(|c: char| c.is_ascii_alphabetic())
         {
-            return Err(format!("URI '{uri}' is not a relative path or data URI (only those are allowed)"));
+            return Err(format!(
+                "URI '{uri}' is not a relative path or data URI (only those are allowed)"
+            ));
         }
     }
     let decoded = String::from_utf8(percent_decode(uri))
         .map_err(|_| format!("URI '{uri}' does not decode to UTF-8"))?;
     if decoded.starts_with(['/', '\\']) || decoded.contains('\0') {
-        return Err(format!("URI '{uri}' is an absolute path (only paths inside the scene's folder are allowed)"));
+        return Err(format!(
+            "URI '{uri}' is an absolute path (only paths inside the scene's folder are allowed)"
+        ));
     }
     let mut parts: Vec<&str> = Vec::new();
     for part in decoded.split(['/', '\\']) {
@@ -252,13 +282,19 @@ pub(super) struct View<'b> {
 }
 
 /// Resolves `bufferViews[i]` to its bytes (bounds-checked against the buffer).
-pub(super) fn view<'b>(root: &Value, buffers: &'b Buffers<'_>, i: usize) -> Result<View<'b>, String> {
+pub(super) fn view<'b>(
+    root: &Value,
+    buffers: &'b Buffers<'_>,
+    i: usize,
+) -> Result<View<'b>, String> {
     let at = format!("bufferViews[{i}]");
     let def = json::array(root, "bufferViews")?
         .get(i)
         .ok_or_else(|| format!("{at} does not exist"))?;
     let err = |e: String| format!("{at}: {e}");
-    let buffer = json::index(def, "buffer").map_err(err)?.ok_or_else(|| err("no `buffer`".into()))?;
+    let buffer = json::index(def, "buffer")
+        .map_err(err)?
+        .ok_or_else(|| err("no `buffer`".into()))?;
     let offset = json::uint(def, "byteOffset").map_err(err)?.unwrap_or(0);
     let length = json::uint(def, "byteLength")
         .map_err(err)?
@@ -297,7 +333,10 @@ mod tests {
             Ok(Target::Data(_)) => Err("data".to_string()),
             Err(e) => Err(e),
         };
-        assert_eq!(file("Box%20With%20Spaces.bin").unwrap(), dir.join("Box With Spaces.bin"));
+        assert_eq!(
+            file("Box%20With%20Spaces.bin").unwrap(),
+            dir.join("Box With Spaces.bin")
+        );
         assert_eq!(file("x/../y/./z.bin").unwrap(), dir.join("y").join("z.bin"));
         assert!(file("../b.bin").is_err());
         assert!(file("x/../../b.bin").is_err());

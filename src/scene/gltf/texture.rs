@@ -65,7 +65,9 @@ pub(super) fn resolve(root: &Value, info: &Value) -> Result<TexRef, String> {
         }
     };
     if image >= json::array(root, "images")?.len() {
-        return Err(format!("textures[{t}].source: image {image} does not exist"));
+        return Err(format!(
+            "textures[{t}].source: image {image} does not exist"
+        ));
     }
     let sampler = json::index(texture, "sampler")
         .ok()
@@ -97,14 +99,21 @@ pub(super) fn resolve(root: &Value, info: &Value) -> Result<TexRef, String> {
 }
 
 /// The encoded bytes of `images[i]` (from a URI or a buffer view).
-pub(super) fn image_bytes(root: &Value, buffers: &Buffers<'_>, dir: &Path, i: usize) -> Result<Vec<u8>, String> {
+pub(super) fn image_bytes(
+    root: &Value,
+    buffers: &Buffers<'_>,
+    dir: &Path,
+    i: usize,
+) -> Result<Vec<u8>, String> {
     let def = json::array(root, "images")?
         .get(i)
         .ok_or_else(|| format!("image {i} does not exist"))?;
     if let Some(uri) = json::string(def, "uri")? {
         return match resolve_uri(dir, uri)? {
             Target::Data(d) => Ok(d),
-            Target::File(p) => std::fs::read(&p).map_err(|e| format!("cannot read '{}': {e}", p.display())),
+            Target::File(p) => {
+                std::fs::read(&p).map_err(|e| format!("cannot read '{}': {e}", p.display()))
+            }
         };
     }
     let v = json::index(def, "bufferView")?.ok_or("image has neither `uri` nor `bufferView`")?;
@@ -139,11 +148,17 @@ impl Level {
                 let (x0, x1) = ((2 * x).min(self.w - 1), (2 * x + 1).min(self.w - 1));
                 for c in 0..ch {
                     let at = |xx: usize, yy: usize| self.px[(yy * self.w + xx) * ch + c];
-                    px[(y * w + x) * ch + c] = 0.25 * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
+                    px[(y * w + x) * ch + c] =
+                        0.25 * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
                 }
             }
         }
-        Level { w, h, channels: ch, px }
+        Level {
+            w,
+            h,
+            channels: ch,
+            px,
+        }
     }
 
     /// Bilinear sample at texture coordinates (u, v), wrapped per `wrap`.
@@ -173,13 +188,18 @@ impl Level {
         let (xi, yi) = (xf as i64, yf as i64);
         let xs = [wrap_i(xi, self.w, wrap[0]), wrap_i(xi + 1, self.w, wrap[0])];
         let ys = [wrap_i(yi, self.h, wrap[1]), wrap_i(yi + 1, self.h, wrap[1])];
-        let weights = [(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy];
+        let weights = [
+            (1.0 - fx) * (1.0 - fy),
+            fx * (1.0 - fy),
+            (1.0 - fx) * fy,
+            fx * fy,
+        ];
         let ch = self.channels;
         *out = [0.0; 4];
         for (k, wgt) in weights.iter().enumerate() {
             let base = (ys[k / 2] * self.w + xs[k % 2]) * ch;
-            for c in 0..ch {
-                out[c] += wgt * self.px[base + c];
+            for (o, p) in out.iter_mut().zip(&self.px[base..base + ch]) {
+                *o += wgt * p;
             }
         }
     }
@@ -215,26 +235,57 @@ impl Pyramid {
             reader.decode().map_err(|e| e.to_string())
         })
         .map_err(|_| "the image decoder panicked".to_string())??;
-        let rgba = decoded.to_rgba32f();
-        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+        let (w, h) = (decoded.width() as usize, decoded.height() as usize);
         if w == 0 || h == 0 {
             return Err("the image is empty".into());
         }
-        let mut px = rgba.into_raw();
-        for t in px.chunks_exact_mut(4) {
-            for c in &mut t[..3] {
-                *c = srgb_to_linear(c.clamp(0.0, 1.0));
+        let color = decoded.color();
+        let px: Vec<f32> = if color.bytes_per_pixel() == color.channel_count() {
+            // 8 bits per channel: decode sRGB through a 256-entry table.
+            let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
+            let mut px = Vec::with_capacity(w * h * 4);
+            for t in decoded.to_rgba8().pixels() {
+                let [r, g, b, a] = t.0;
+                px.extend([
+                    lut[r as usize],
+                    lut[g as usize],
+                    lut[b as usize],
+                    a as f32 / 255.0,
+                ]);
             }
-        }
-        Ok(Pyramid::build(Level { w, h, channels: 4, px }))
+            px
+        } else {
+            let mut px = decoded.to_rgba32f().into_raw();
+            for t in px.chunks_exact_mut(4) {
+                for c in &mut t[..3] {
+                    *c = srgb_to_linear(c.clamp(0.0, 1.0));
+                }
+            }
+            px
+        };
+        Ok(Pyramid::build(Level {
+            w,
+            h,
+            channels: 4,
+            px,
+        }))
     }
 
     /// Coverage pyramid: level 0 is 1 where alpha ≥ `threshold`, else 0; higher levels hold
     /// the covered fraction, so sampling them gives the fraction of texels that pass.
     pub fn coverage(&self, threshold: f32) -> Pyramid {
         let l0 = &self.levels[0];
-        let px = l0.px.chunks_exact(4).map(|t| f32::from(t[3] >= threshold)).collect();
-        Pyramid::build(Level { w: l0.w, h: l0.h, channels: 1, px })
+        let px = l0
+            .px
+            .chunks_exact(4)
+            .map(|t| f32::from(t[3] >= threshold))
+            .collect();
+        Pyramid::build(Level {
+            w: l0.w,
+            h: l0.h,
+            channels: 1,
+            px,
+        })
     }
 
     /// Size of level 0 in texels.
@@ -304,10 +355,16 @@ const SAMPLES: [(f32, f32); 16] = {
     while i < n {
         let mut j = 0;
         while j < n - i {
-            out[k] = ((i as f32 + 1.0 / 3.0) / n as f32, (j as f32 + 1.0 / 3.0) / n as f32);
+            out[k] = (
+                (i as f32 + 1.0 / 3.0) / n as f32,
+                (j as f32 + 1.0 / 3.0) / n as f32,
+            );
             k += 1;
             if i + j < n - 1 {
-                out[k] = ((i as f32 + 2.0 / 3.0) / n as f32, (j as f32 + 2.0 / 3.0) / n as f32);
+                out[k] = (
+                    (i as f32 + 2.0 / 3.0) / n as f32,
+                    (j as f32 + 2.0 / 3.0) / n as f32,
+                );
                 k += 1;
             }
             j += 1;
@@ -329,7 +386,12 @@ mod tests {
                 px.extend([v, v, v, 1.0]);
             }
         }
-        Pyramid::build(Level { w: n, h: n, channels: 4, px })
+        Pyramid::build(Level {
+            w: n,
+            h: n,
+            channels: 4,
+            px,
+        })
     }
 
     #[test]

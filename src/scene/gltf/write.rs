@@ -32,7 +32,11 @@ fn vec3(v: Vec3) -> Value {
 /// Splits a colour-times-intensity into (colour with max component 1, intensity).
 fn color_intensity(v: Vec3) -> (Vec3, f32) {
     let m = v.max_element();
-    if m > 0.0 { (v / m, m) } else { (Vec3::ONE, 0.0) }
+    if m > 0.0 {
+        (v / m, m)
+    } else {
+        (Vec3::ONE, 0.0)
+    }
 }
 
 /// Writes `scene` as a glTF 2.0 JSON document with an embedded buffer (see the module doc).
@@ -143,25 +147,47 @@ pub fn write_gltf(scene: &Scene) -> String {
     for light in &scene.lights {
         let mut def = Map::new();
         let (node, radiant) = match light {
-            Light::Point { position, intensity, range } => {
+            Light::Point {
+                position,
+                intensity,
+                range,
+            } => {
                 def.insert("type".into(), json!("point"));
                 if let Some(r) = range {
                     def.insert("range".into(), json!(r));
                 }
                 (json!({"translation": position.to_array()}), *intensity)
             }
-            Light::Spot { position, direction, intensity, range, inner_cone, outer_cone } => {
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                range,
+                inner_cone,
+                outer_cone,
+            } => {
                 def.insert("type".into(), json!("spot"));
-                def.insert("spot".into(), json!({"innerConeAngle": inner_cone, "outerConeAngle": outer_cone}));
+                def.insert(
+                    "spot".into(),
+                    json!({"innerConeAngle": inner_cone, "outerConeAngle": outer_cone}),
+                );
                 if let Some(r) = range {
                     def.insert("range".into(), json!(r));
                 }
-                let q = DQuat::from_rotation_arc(DVec3::NEG_Z, direction.normalize_or(DVec3::NEG_Z));
-                (json!({"translation": position.to_array(), "rotation": q.to_array()}), *intensity)
+                let q =
+                    DQuat::from_rotation_arc(DVec3::NEG_Z, direction.normalize_or(DVec3::NEG_Z));
+                (
+                    json!({"translation": position.to_array(), "rotation": q.to_array()}),
+                    *intensity,
+                )
             }
-            Light::Directional { direction, irradiance } => {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
                 def.insert("type".into(), json!("directional"));
-                let q = DQuat::from_rotation_arc(DVec3::NEG_Z, direction.normalize_or(DVec3::NEG_Z));
+                let q =
+                    DQuat::from_rotation_arc(DVec3::NEG_Z, direction.normalize_or(DVec3::NEG_Z));
                 (json!({"rotation": q.to_array()}), *irradiance)
             }
         };
