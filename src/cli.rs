@@ -6,6 +6,7 @@ use crate::export::{baked_glb, write_atomic};
 use crate::mesh::{DisplayMesh, MeshSettings, Reconstruction};
 use crate::pipeline::Prepared;
 use crate::scene::{Scene, builtin};
+use crate::solver::form_factor::FormFactorSettings;
 use crate::solver::{Method, Solver, SolverSettings, Stats, StepOutcome};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
@@ -112,8 +113,14 @@ pub struct SolveOptions {
     #[arg(long, value_parser = parse_sun)]
     pub sun: Option<(DVec3, Vec3)>,
     /// Most shadow rays per element–patch form factor.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = FormFactorSettings::default().max_rays)]
     pub max_rays: u32,
+    /// Fewest shadow rays per element–patch form factor.
+    #[arg(long, default_value_t = FormFactorSettings::default().min_rays)]
+    pub min_rays: u32,
+    /// Shadow rays for an element–patch pair in penumbra (first rays disagree).
+    #[arg(long, default_value_t = FormFactorSettings::default().penumbra_rays)]
+    pub penumbra_rays: u32,
 }
 
 fn parse_rgb(s: &str) -> Result<Vec3, String> {
@@ -163,6 +170,8 @@ impl SolveOptions {
             ..Default::default()
         };
         s.form_factors.max_rays = self.max_rays.max(1);
+        s.form_factors.penumbra_rays = self.penumbra_rays.max(1);
+        s.form_factors.min_rays = self.min_rays.clamp(1, s.form_factors.max_rays);
         s
     }
 }
@@ -171,7 +180,12 @@ impl SolveOptions {
 /// prints its warnings unless `quiet`.
 pub fn load_scene(spec: &str, options: &SolveOptions, quiet: bool) -> Result<Scene> {
     let mut scene = if let Some(name) = spec.strip_prefix("builtin:") {
-        builtin::by_name(name).with_context(|| format!("{spec}: unknown built-in scene (known: {})", builtin::NAMES.join(", ")))?
+        builtin::by_name(name).with_context(|| {
+            format!(
+                "{spec}: unknown built-in scene (known: {})",
+                builtin::NAMES.join(", ")
+            )
+        })?
     } else {
         crate::scene::gltf::load(Path::new(spec))?
     };
@@ -202,7 +216,11 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 
 /// Runs `solver` to convergence or the time limit with a progress bar (position: log of the
 /// unshot fraction or residual between 1 and the tolerance).
-fn run_with_progress(solver: &mut Solver, time_limit: Option<f64>, quiet: bool) -> Result<StepOutcome> {
+fn run_with_progress(
+    solver: &mut Solver,
+    time_limit: Option<f64>,
+    quiet: bool,
+) -> Result<StepOutcome> {
     let bar = progress_bar(quiet);
     let start = Instant::now();
     let cancel = AtomicBool::new(false);
@@ -215,7 +233,9 @@ fn run_with_progress(solver: &mut Solver, time_limit: Option<f64>, quiet: bool) 
             bar.set_position((done * 1000.0) as u64);
             bar.set_message(format!("{} iterations, residual {r:.2e}", s.iterations));
         }
-        if outcome != StepOutcome::Working || time_limit.is_some_and(|t| start.elapsed() >= Duration::from_secs_f64(t)) {
+        if outcome != StepOutcome::Working
+            || time_limit.is_some_and(|t| start.elapsed() >= Duration::from_secs_f64(t))
+        {
             break outcome;
         }
     };
@@ -278,7 +298,11 @@ pub fn run(cli: Cli) -> Result<()> {
                 st.rays,
                 st.residual.map_or("-".into(), |r| format!("{r:.2e}")),
                 st.energy_balance.map_or("-".into(), |r| format!("{r:.4}")),
-                if outcome == StepOutcome::Converged { "" } else { " (time limit; not converged)" }
+                if outcome == StepOutcome::Converged {
+                    ""
+                } else {
+                    " (time limit; not converged)"
+                }
             );
             if let Some(path) = stats {
                 let file = StatsFile {
@@ -292,7 +316,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 write_atomic(&path, serde_json::to_string_pretty(&file)?.as_bytes())?;
             }
             if let Some(path) = out {
-                let values = prepared.mesh.display.vertex_values(&prepared.mesh.elements, &solver.radiosity());
+                let values = prepared
+                    .mesh
+                    .display
+                    .vertex_values(&prepared.mesh.elements, &solver.radiosity());
                 write_atomic(&path, &baked_glb(&s, &prepared.mesh, &values))?;
             }
             Ok(())
@@ -354,21 +381,31 @@ pub fn read_points(path: &Path) -> Result<Vec<(DVec3, DVec3)>> {
 
 /// Reads the named numeric columns of a CSV with a header row.
 pub fn read_table(path: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
     let header: Vec<&str> = lines
         .next()
-        .with_context(|| format!("{}: empty file (expected a header {})", path.display(), columns.join(",")))?
+        .with_context(|| {
+            format!(
+                "{}: empty file (expected a header {})",
+                path.display(),
+                columns.join(",")
+            )
+        })?
         .split(',')
         .map(str::trim)
         .collect();
     let index: Vec<usize> = columns
         .iter()
         .map(|c| {
-            header
-                .iter()
-                .position(|h| h == c)
-                .with_context(|| format!("{}: header has no column '{c}' (expected {})", path.display(), columns.join(",")))
+            header.iter().position(|h| h == c).with_context(|| {
+                format!(
+                    "{}: header has no column '{c}' (expected {})",
+                    path.display(),
+                    columns.join(",")
+                )
+            })
         })
         .collect::<Result<_>>()?;
     let mut rows = Vec::new();
@@ -381,7 +418,13 @@ pub fn read_table(path: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>> {
                 cell.parse::<f64>()
                     .ok()
                     .filter(|v| v.is_finite())
-                    .with_context(|| format!("{}: line {}: '{cell}' is not a finite number", path.display(), k + 2))
+                    .with_context(|| {
+                        format!(
+                            "{}: line {}: '{cell}' is not a finite number",
+                            path.display(),
+                            k + 2
+                        )
+                    })
             })
             .collect::<Result<Vec<f64>>>()?;
         rows.push(row);
@@ -391,13 +434,20 @@ pub fn read_table(path: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>> {
 
 /// Reconstructed radiosity at world points with outward normals (zero where no element
 /// faces that way).
-pub fn probe_values(prepared: &Prepared, radiosity: &[Vec3], points: &[(DVec3, DVec3)], mode: Reconstruction) -> Vec<Vec3> {
+pub fn probe_values(
+    prepared: &Prepared,
+    radiosity: &[Vec3],
+    points: &[(DVec3, DVec3)],
+    mode: Reconstruction,
+) -> Vec<Vec3> {
     let mesh = &prepared.mesh;
     let vertex_values = mesh.display.vertex_values(&mesh.elements, radiosity);
     points
         .iter()
         .map(|(p, n)| match mesh.locate(mesh.to_local(*p), n.as_vec3()) {
-            Some((e, bary)) => DisplayMesh::value_at(mode, &mesh.elements, radiosity, &vertex_values, e, bary),
+            Some((e, bary)) => {
+                DisplayMesh::value_at(mode, &mesh.elements, radiosity, &vertex_values, e, bary)
+            }
             None => Vec3::ZERO,
         })
         .collect()

@@ -13,9 +13,16 @@ use std::path::Path;
 /// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename, so a
 /// failure never leaves a partial file and never clobbers the old one half-way.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let name = path.file_name().context("output path has no file name")?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let tmp = dir.join(format!(
+        ".{}.tmp{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let result = (|| -> Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -35,14 +42,19 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, vertex_radiosity: &[Vec3]) -> Vec<u
     let mut buffer_views = Vec::new();
     let mut accessors = Vec::new();
     let mut push_view = |bin: &mut Vec<u8>, data: &[u8], target: u32| -> usize {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         buffer_views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len(), "target": target}));
         bin.extend_from_slice(data);
         buffer_views.len() - 1
     };
-    let f32_bytes = |v: &[Vec3]| -> Vec<u8> { v.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect() };
+    let f32_bytes = |v: &[Vec3]| -> Vec<u8> {
+        v.iter()
+            .flat_map(|p| p.to_array())
+            .flat_map(f32::to_le_bytes)
+            .collect()
+    };
     // Shared vertex attributes (positions relative to the mesh origin; the node translates).
     let (lo, hi) = mesh.display.positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -50,14 +62,21 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, vertex_radiosity: &[Vec3]) -> Vec<u
     );
     let pos_view = push_view(&mut bin, &f32_bytes(&mesh.display.positions), 34962);
     let n = mesh.display.positions.len();
-    accessors.push(json!({"bufferView": pos_view, "componentType": 5126, "count": n, "type": "VEC3",
+    accessors.push(
+        json!({"bufferView": pos_view, "componentType": 5126, "count": n, "type": "VEC3",
         "min": if n > 0 { lo.to_array().to_vec() } else { vec![0.0; 3] },
-        "max": if n > 0 { hi.to_array().to_vec() } else { vec![0.0; 3] }}));
+        "max": if n > 0 { hi.to_array().to_vec() } else { vec![0.0; 3] }}),
+    );
     let nrm_view = push_view(&mut bin, &f32_bytes(&mesh.display.normals), 34962);
-    accessors.push(json!({"bufferView": nrm_view, "componentType": 5126, "count": n, "type": "VEC3"}));
-    let radiance: Vec<Vec3> = vertex_radiosity.iter().map(|b| *b / std::f32::consts::PI).collect();
+    accessors
+        .push(json!({"bufferView": nrm_view, "componentType": 5126, "count": n, "type": "VEC3"}));
+    let radiance: Vec<Vec3> = vertex_radiosity
+        .iter()
+        .map(|b| *b / std::f32::consts::PI)
+        .collect();
     let col_view = push_view(&mut bin, &f32_bytes(&radiance), 34962);
-    accessors.push(json!({"bufferView": col_view, "componentType": 5126, "count": n, "type": "VEC3"}));
+    accessors
+        .push(json!({"bufferView": col_view, "componentType": 5126, "count": n, "type": "VEC3"}));
     // One primitive per material, indices from the element corners.
     let mut by_material: Vec<Vec<u32>> = vec![Vec::new(); scene.materials.len().max(1)];
     for e in &mesh.elements {
@@ -76,7 +95,7 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, vertex_radiosity: &[Vec3]) -> Vec<u
         accessors.push(json!({"bufferView": view, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
         primitives.push(json!({"attributes": {"POSITION": 0, "NORMAL": 1, "COLOR_0": 2}, "indices": accessors.len() - 1, "material": m}));
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let materials: Vec<_> = scene
@@ -103,7 +122,7 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, vertex_radiosity: &[Vec3]) -> Vec<u
         "accessors": accessors,
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap_or_default();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();

@@ -5,9 +5,9 @@
 //! has no GUI or GPU dependency; `cli` drives it from the command line.
 
 pub mod accel;
+pub mod cli;
+pub mod export;
 pub mod mesh;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;
-pub mod cli;
-pub mod export;

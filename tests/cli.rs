@@ -24,16 +24,33 @@ fn solve_writes_stats_and_a_baked_glb() {
         .arg(d.join("baked.glb"))
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("stats.json")).unwrap()).unwrap();
-    for key in ["elements", "patches", "iterations", "rays", "seconds", "unshot_fraction", "residual", "energy_balance"] {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("stats.json")).unwrap()).unwrap();
+    for key in [
+        "elements",
+        "patches",
+        "iterations",
+        "rays",
+        "seconds",
+        "unshot_fraction",
+        "residual",
+        "energy_balance",
+    ] {
         assert!(stats.get(key).is_some(), "stats lack {key}: {stats}");
     }
     assert_eq!(stats["converged"], true);
     assert!(stats["unshot_fraction"].as_f64().unwrap() <= 1e-3);
     let glb = std::fs::read(d.join("baked.glb")).unwrap();
     assert_eq!(&glb[0..4], b"glTF");
-    assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
+    assert_eq!(
+        u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize,
+        glb.len()
+    );
 }
 
 #[test]
@@ -55,11 +72,17 @@ fn probe_matches_the_white_furnace_closed_form() {
         .arg(d.join("values.csv"))
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(d.join("values.csv")).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some("x,y,z,r,g,b"));
-    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|c| c.parse().unwrap()).collect()).collect();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
     assert_eq!(rows.len(), 4);
     for (i, r) in rows.iter().enumerate() {
         // Row 1 asks about the floor (y = 0) from above: B = 2. Row 2 asks for a point at
@@ -76,7 +99,11 @@ fn probe_sees_colour_bleeding_in_the_cornell_box() {
     // Floor points near the red wall (x ≈ 0.5) must be redder than near the green one.
     let d = temp_dir("bleed");
     let points = d.join("points.csv");
-    std::fs::write(&points, "x,y,z,nx,ny,nz\n0.50,0,0.1,0,1,0\n0.05,0,0.1,0,1,0\n").unwrap();
+    std::fs::write(
+        &points,
+        "x,y,z,nx,ny,nz\n0.50,0,0.1,0,1,0\n0.05,0,0.1,0,1,0\n",
+    )
+    .unwrap();
     let out = bin()
         .args(["probe", "builtin:cornell", "--quiet", "--points"])
         .arg(&points)
@@ -84,17 +111,33 @@ fn probe_sees_colour_bleeding_in_the_cornell_box() {
         .unwrap();
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
-    let rows: Vec<Vec<f64>> = text.lines().skip(1).map(|l| l.split(',').map(|c| c.parse().unwrap()).collect()).collect();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
     let (near_red, near_green) = (&rows[0], &rows[1]);
-    assert!(near_red[3] / near_red[4] > near_green[3] / near_green[4], "{rows:?}");
-    assert!(near_green[4] / near_green[3] > near_red[4] / near_red[3], "{rows:?}");
+    assert!(
+        near_red[3] / near_red[4] > near_green[3] / near_green[4],
+        "{rows:?}"
+    );
+    assert!(
+        near_green[4] / near_green[3] > near_red[4] / near_red[3],
+        "{rows:?}"
+    );
 }
 
 #[test]
 fn bad_input_exits_1_with_one_message_and_no_output_file() {
     let d = temp_dir("bad");
     let missing = d.join("no such scene.gltf");
-    let out = bin().args(["solve"]).arg(&missing).arg("--out").arg(d.join("x.glb")).output().unwrap();
+    let out = bin()
+        .args(["solve"])
+        .arg(&missing)
+        .arg("--out")
+        .arg(d.join("x.glb"))
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no such scene.gltf"), "{err}");
@@ -118,7 +161,10 @@ fn bad_input_exits_1_with_one_message_and_no_output_file() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("points.csv") && err.contains("line 2"), "{err}");
+    assert!(
+        err.contains("points.csv") && err.contains("line 2"),
+        "{err}"
+    );
     assert!(!d.join("v.csv").exists());
 
     let out = bin().args(["solve", "builtin:nothing"]).output().unwrap();
@@ -129,15 +175,32 @@ fn bad_input_exits_1_with_one_message_and_no_output_file() {
 fn bench_writes_curves_for_every_method() {
     let d = temp_dir("bench");
     let out = bin()
-        .args(["bench", "builtin:cornell", "--quiet", "--max-elements", "600", "--out"])
+        .args([
+            "bench",
+            "builtin:cornell",
+            "--quiet",
+            "--max-elements",
+            "600",
+            "--out",
+        ])
         .arg(&d)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let csv = std::fs::read_to_string(d.join("convergence.csv")).unwrap();
-    assert!(csv.starts_with("method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error"));
+    assert!(csv.starts_with(
+        "method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error"
+    ));
     for m in ["progressive", "jacobi", "gauss-seidel", "direct"] {
-        let last = csv.lines().filter(|l| l.starts_with(&format!("{m},"))).last().unwrap_or_else(|| panic!("{m} missing"));
+        let last = csv
+            .lines()
+            .rev()
+            .find(|l| l.starts_with(&format!("{m},")))
+            .unwrap_or_else(|| panic!("{m} missing"));
         let rms: f64 = last.split(',').nth(6).unwrap().parse().unwrap();
         // Every method runs to 1e-5; against the direct solve that is ≲ 1e-4 RMS.
         assert!(rms < 1e-4, "{m}: final RMS {rms}");

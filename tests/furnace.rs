@@ -10,7 +10,12 @@ use radiosity::scene::{Scene, builtin};
 use radiosity::solver::{Method, SolverSettings, StepOutcome};
 use std::sync::atomic::AtomicBool;
 
-fn solve(scene: &Scene, method: Method, tolerance: f64, max_elements: usize) -> (Vec<f32>, Vec<f64>, radiosity::solver::Stats) {
+fn solve(
+    scene: &Scene,
+    method: Method,
+    tolerance: f64,
+    max_elements: usize,
+) -> (Vec<f32>, Vec<f64>, radiosity::solver::Stats) {
     let prepared = Prepared::new(
         scene,
         &MeshSettings {
@@ -28,7 +33,12 @@ fn solve(scene: &Scene, method: Method, tolerance: f64, max_elements: usize) -> 
     let outcome = solver.run(None, &AtomicBool::new(false)).unwrap();
     assert_eq!(outcome, StepOutcome::Converged);
     let b = solver.radiosity().iter().map(|b| b.x).collect();
-    let areas = prepared.mesh.elements.iter().map(|e| e.area as f64).collect();
+    let areas = prepared
+        .mesh
+        .elements
+        .iter()
+        .map(|e| e.area as f64)
+        .collect();
     (b, areas, solver.stats().clone())
 }
 
@@ -51,23 +61,40 @@ fn check_furnace(scene: &Scene, rho: f32, method: Method, max_elements: usize) {
     let want = 1.0 / (1.0 - rho);
     let rounding = 2e-6 / (1.0 - rho);
     let total: f64 = areas.iter().sum();
-    let mean: f64 = b.iter().zip(&areas).map(|(v, a)| (*v as f64 - want).abs() * a).sum::<f64>() / total / want;
+    let mean: f64 = b
+        .iter()
+        .zip(&areas)
+        .map(|(v, a)| (*v as f64 - want).abs() * a)
+        .sum::<f64>()
+        / total
+        / want;
     assert!(
         mean <= rho * tol + rounding,
         "{} ρ={rho} {method}: mean relative error {mean:e} > {:e}",
         scene.name,
         rho * tol + rounding
     );
-    let per_element = if method == Method::Direct { rounding } else { 1e-3 };
+    let per_element = if method == Method::Direct {
+        rounding
+    } else {
+        1e-3
+    };
     for (i, v) in b.iter().enumerate() {
         assert!(v.is_finite(), "element {i}: {v}");
         let err = (*v as f64 - want).abs() / want;
-        assert!(err <= per_element, "{} ρ={rho} {method}: element {i} has B={v}, want {want} (relative error {err:e})", scene.name);
+        assert!(
+            err <= per_element,
+            "{} ρ={rho} {method}: element {i} has B={v}, want {want} (relative error {err:e})",
+            scene.name
+        );
     }
     let balance = stats.energy_balance.unwrap();
     // Closed scene: every bit of light leaving a surface arrives at one; the only loss is the
     // f32 rounding of the form factors, so the balance is 1 to ~1e-5.
-    assert!((balance - 1.0).abs() < 1e-4, "closed scene must capture all light: {balance}");
+    assert!(
+        (balance - 1.0).abs() < 1e-4,
+        "closed scene must capture all light: {balance}"
+    );
 }
 
 #[test]

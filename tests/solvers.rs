@@ -27,7 +27,10 @@ fn solve(p: &Prepared, method: Method, tolerance: f64) -> Vec<glam::Vec3> {
             ..Default::default()
         })
         .unwrap();
-    assert_eq!(s.run(None, &AtomicBool::new(false)).unwrap(), StepOutcome::Converged);
+    assert_eq!(
+        s.run(None, &AtomicBool::new(false)).unwrap(),
+        StepOutcome::Converged
+    );
     s.radiosity()
 }
 
@@ -81,7 +84,12 @@ fn no_element_receives_more_than_physically_possible() {
         let patch = &p.mesh.patches[e.patch as usize];
         let bound = patch.emission + patch.reflectance * max_b;
         assert!(b[i].is_finite());
-        assert!(b[i].cmple(bound * 1.0001).all(), "element {i}: {} > {}", b[i], bound);
+        assert!(
+            b[i].cmple(bound * 1.0001).all(),
+            "element {i}: {} > {}",
+            b[i],
+            bound
+        );
     }
 }
 

@@ -93,10 +93,7 @@ impl Bvh {
             })
             .collect();
         let mut nodes = Vec::with_capacity(tris.len() * 2 / MAX_LEAF + 1);
-        let centroids: Vec<Vec3> = tris
-            .iter()
-            .map(|t| t.v0 + (t.e1 + t.e2) / 3.0)
-            .collect();
+        let centroids: Vec<Vec3> = tris.iter().map(|t| t.v0 + (t.e1 + t.e2) / 3.0).collect();
         let mut order: Vec<u32> = (0..tris.len() as u32).collect();
         nodes.push(Node {
             lo: Vec3::ZERO,
@@ -105,7 +102,16 @@ impl Bvh {
             count: 0,
         });
         if !tris.is_empty() {
-            build_node(&mut nodes, 0, &tris, &centroids, &mut order, 0, tris.len(), 0);
+            build_node(
+                &mut nodes,
+                0,
+                &tris,
+                &centroids,
+                &mut order,
+                0,
+                tris.len(),
+                0,
+            );
         }
         tris = order.iter().map(|&i| tris[i as usize]).collect();
         Bvh { nodes, tris }
@@ -147,8 +153,10 @@ impl Bvh {
                 if sp + 2 > STACK {
                     continue;
                 }
-                stack[sp] = node.start;
-                stack[sp + 1] = node.start + 1;
+                // Nearer child first: occluders near the segment's start are found sooner.
+                let (near, far) = self.order_children(node, a, dir);
+                stack[sp] = far;
+                stack[sp + 1] = near;
                 sp += 2;
                 continue;
             }
@@ -177,7 +185,14 @@ impl Bvh {
 
     /// Nearest hit along `origin + t·direction` for `t` in (`t_min`, `t_max`), ignoring
     /// the triangle `skip` (pass `u32::MAX` for none).
-    pub fn closest_hit(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32, skip: u32) -> Option<Hit> {
+    pub fn closest_hit(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        t_min: f32,
+        t_max: f32,
+        skip: u32,
+    ) -> Option<Hit> {
         if self.tris.is_empty() {
             return None;
         }
@@ -197,15 +212,7 @@ impl Bvh {
                     continue;
                 }
                 // Visit the nearer child first: push it last.
-                let l = &self.nodes[node.start as usize];
-                let r = &self.nodes[node.start as usize + 1];
-                let dl = ((l.lo + l.hi) * 0.5 - origin).dot(direction);
-                let dr = ((r.lo + r.hi) * 0.5 - origin).dot(direction);
-                let (near, far) = if dl <= dr {
-                    (node.start, node.start + 1)
-                } else {
-                    (node.start + 1, node.start)
-                };
+                let (near, far) = self.order_children(node, origin, direction);
                 stack[sp] = far;
                 stack[sp + 1] = near;
                 sp += 2;
@@ -232,6 +239,21 @@ impl Bvh {
         best
     }
 
+    /// The children of interior `node` as (nearer, farther) along `direction` from `origin`,
+    /// judged by their box centres.
+    #[inline]
+    fn order_children(&self, node: &Node, origin: Vec3, direction: Vec3) -> (u32, u32) {
+        let l = &self.nodes[node.start as usize];
+        let r = &self.nodes[node.start as usize + 1];
+        let dl = ((l.lo + l.hi) * 0.5 - origin).dot(direction);
+        let dr = ((r.lo + r.hi) * 0.5 - origin).dot(direction);
+        if dl <= dr {
+            (node.start, node.start + 1)
+        } else {
+            (node.start + 1, node.start)
+        }
+    }
+
     /// Checks the structural invariants: every node's box contains its children or its
     /// triangles, and every triangle is referenced by exactly one leaf.
     pub fn validate(&self) -> Result<(), String> {
@@ -245,7 +267,10 @@ impl Bvh {
             let contains = |lo: Vec3, hi: Vec3| lo.cmpge(n.lo).all() && hi.cmple(n.hi).all();
             if n.count == 0 {
                 for c in [n.start, n.start + 1] {
-                    let child = self.nodes.get(c as usize).ok_or("child index out of range")?;
+                    let child = self
+                        .nodes
+                        .get(c as usize)
+                        .ok_or("child index out of range")?;
                     if !contains(child.lo, child.hi) {
                         return Err(format!("node {i}: child {c} outside its box"));
                     }
@@ -253,7 +278,10 @@ impl Bvh {
                 }
             } else {
                 for k in n.start..n.start + n.count {
-                    let t = self.tris.get(k as usize).ok_or("triangle index out of range")?;
+                    let t = self
+                        .tris
+                        .get(k as usize)
+                        .ok_or("triangle index out of range")?;
                     for p in [t.v0, t.v0 + t.e1, t.v0 + t.e2] {
                         // v0 + e1 may round by one ulp against the box built from the
                         // original vertex; allow that much.
@@ -353,7 +381,8 @@ fn build_node(
         let mut bin_box = [Aabb::EMPTY; BINS];
         let mut bin_n = [0usize; BINS];
         for &i in &order[begin..end] {
-            let b = (((centroids[i as usize][axis] - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
+            let b =
+                (((centroids[i as usize][axis] - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
             let t = &tris[i as usize];
             bin_box[b].grow(t.v0);
             bin_box[b].grow(t.v0 + t.e1);
@@ -450,7 +479,11 @@ mod tests {
         let mut tris = quad(0.0).to_vec();
         tris.extend(quad(0.5));
         let bvh = Bvh::build(&tris, &[0.5, 0.5, 0.25, 0.25]);
-        let t = bvh.transmittance(Vec3::new(0.2, 0.1, -1.0), Vec3::new(0.2, 0.1, 1.0), [u32::MAX; 2]);
+        let t = bvh.transmittance(
+            Vec3::new(0.2, 0.1, -1.0),
+            Vec3::new(0.2, 0.1, 1.0),
+            [u32::MAX; 2],
+        );
         assert!((t - 0.125).abs() < 1e-6, "0.5 × 0.25 expected, got {t}");
     }
 }

@@ -60,22 +60,29 @@ fn point_errors(values: &[Vec3], reference: &[Vec3]) -> (f64, f64) {
 
 fn compute_reference(prepared: &Prepared, spec: &str, quiet: bool) -> Result<Reference> {
     if spec != "direct" {
-        let rows = read_table(Path::new(spec), &["x", "y", "z", "nx", "ny", "nz", "r", "g", "b"])?;
+        let rows = read_table(
+            Path::new(spec),
+            &["x", "y", "z", "nx", "ny", "nz", "r", "g", "b"],
+        )?;
         let points = rows
             .iter()
             .map(|r| (DVec3::new(r[0], r[1], r[2]), DVec3::new(r[3], r[4], r[5])))
             .collect();
-        let values = rows.iter().map(|r| Vec3::new(r[6] as f32, r[7] as f32, r[8] as f32)).collect();
+        let values = rows
+            .iter()
+            .map(|r| Vec3::new(r[6] as f32, r[7] as f32, r[8] as f32))
+            .collect();
         return Ok(Reference::Points(points, values));
     }
     let (n, m) = (prepared.mesh.elements.len(), prepared.mesh.patches.len());
-    let (method, tolerance, what) = if m <= MAX_DIRECT_PATCHES && n.saturating_mul(m) <= MAX_MATRIX_PAIRS {
-        (Method::Direct, 0.0, "direct solve")
-    } else if n.saturating_mul(m) <= MAX_MATRIX_PAIRS {
-        (Method::GaussSeidel, 1e-7, "Gauss–Seidel to residual 1e-7")
-    } else {
-        (Method::Progressive, 1e-5, "progressive to unshot 1e-5")
-    };
+    let (method, tolerance, what) =
+        if m <= MAX_DIRECT_PATCHES && n.saturating_mul(m) <= MAX_MATRIX_PAIRS {
+            (Method::Direct, 0.0, "direct solve")
+        } else if n.saturating_mul(m) <= MAX_MATRIX_PAIRS {
+            (Method::GaussSeidel, 1e-7, "Gauss–Seidel to residual 1e-7")
+        } else {
+            (Method::Progressive, 1e-5, "progressive to unshot 1e-5")
+        };
     if !quiet {
         eprintln!("reference: {what} on {n} elements, {m} patches");
     }
@@ -98,7 +105,8 @@ pub fn convergence(
     out: &Path,
     quiet: bool,
 ) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create folder", out.display()))?;
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("{}: cannot create folder", out.display()))?;
     let prepared = prepare(scene, options, quiet);
     let mesh = &prepared.mesh;
     println!(
@@ -116,7 +124,10 @@ pub fn convergence(
     let areas: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
     let errors = |values: &[Vec3]| match &reference {
         Reference::Elements(r, _) => element_errors(values, r, &areas),
-        Reference::Points(p, r) => point_errors(&probe_values(&prepared, values, p, Reconstruction::Gouraud), r),
+        Reference::Points(p, r) => point_errors(
+            &probe_values(&prepared, values, p, Reconstruction::Gouraud),
+            r,
+        ),
     };
     let methods = methods.unwrap_or(Method::ALL.to_vec());
     // Each method runs to 1e-5 (or the given tolerance if tighter) so the curves pass well
@@ -171,7 +182,11 @@ pub fn convergence(
             last.iterations,
             last.rms,
             last.max,
-            if solver.is_converged() { "" } else { " (time limit)" }
+            if solver.is_converged() {
+                ""
+            } else {
+                " (time limit)"
+            }
         );
         println!("{line}");
         summary += &line;
@@ -181,7 +196,9 @@ pub fn convergence(
         Reference::Elements(_, what) => format!("{what}, {reference_seconds:.2} s"),
         Reference::Points(p, _) => format!("{} reference points", p.len()),
     };
-    let mut csv = String::from("method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error\n");
+    let mut csv = String::from(
+        "method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error\n",
+    );
     for r in &rows {
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
         let _ = writeln!(
@@ -200,7 +217,11 @@ pub fn convergence(
     write_atomic(&out.join("convergence.csv"), csv.as_bytes())?;
     let png = plot(&rows, &format!("{} — vs {label}", scene.name))?;
     write_atomic(&out.join("convergence.png"), &png)?;
-    println!("wrote {} and {}", out.join("convergence.csv").display(), out.join("convergence.png").display());
+    println!(
+        "wrote {} and {}",
+        out.join("convergence.csv").display(),
+        out.join("convergence.png").display()
+    );
     Ok(())
 }
 
@@ -216,7 +237,13 @@ fn register_font() -> bool {
         ] {
             if let Ok(bytes) = std::fs::read(path) {
                 let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes).is_ok() {
+                if plotters::style::register_font(
+                    "sans-serif",
+                    plotters::style::FontStyle::Normal,
+                    bytes,
+                )
+                .is_ok()
+                {
                     return true;
                 }
             }
@@ -233,16 +260,32 @@ fn plot(rows: &[Row], title: &str) -> Result<Vec<u8>> {
     let text = register_font();
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        root.fill(&WHITE)
+            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
         let pos = rows.iter().filter(|r| r.rms > 0.0 && r.seconds > 0.0);
-        let (t0, t1) = pos.clone().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.seconds), b.max(r.seconds)));
-        let (e0, e1) = pos.fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.rms), b.max(r.rms)));
-        let (t0, t1) = if t0.is_finite() { (t0 * 0.8, t1 * 1.25) } else { (1e-3, 1.0) };
-        let (e0, e1) = if e0.is_finite() { (e0 * 0.5, e1 * 2.0) } else { (1e-6, 1.0) };
+        let (t0, t1) = pos.clone().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+            (a.min(r.seconds), b.max(r.seconds))
+        });
+        let (e0, e1) = pos.fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+            (a.min(r.rms), b.max(r.rms))
+        });
+        let (t0, t1) = if t0.is_finite() {
+            (t0 * 0.8, t1 * 1.25)
+        } else {
+            (1e-3, 1.0)
+        };
+        let (e0, e1) = if e0.is_finite() {
+            (e0 * 0.5, e1 * 2.0)
+        } else {
+            (1e-6, 1.0)
+        };
         let mut builder = ChartBuilder::on(&root);
         builder.margin(20);
         if text {
-            builder.caption(title, ("sans-serif", 20)).x_label_area_size(45).y_label_area_size(70);
+            builder
+                .caption(title, ("sans-serif", 20))
+                .x_label_area_size(45)
+                .y_label_area_size(70);
         }
         let mut chart = builder
             .build_cartesian_2d((t0..t1).log_scale(), (e0..e1).log_scale())
@@ -272,9 +315,9 @@ fn plot(rows: &[Row], title: &str) -> Result<Vec<u8>> {
                 .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
                 .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
             if text {
-                series
-                    .label(method.name())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+                series.label(method.name()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
             }
             chart
                 .draw_series(pts.iter().map(|p| Circle::new(*p, 2, colour.filled())))
@@ -333,12 +376,21 @@ pub fn occlusion(scene: &Scene, segments: usize) -> Result<()> {
         })
         .collect();
     let t = Instant::now();
-    let blocked_1: usize = pairs.iter().filter(|(a, b, s)| bvh.transmittance(*a, *b, *s) < 1.0).count();
+    let blocked_1: usize = pairs
+        .iter()
+        .filter(|(a, b, s)| bvh.transmittance(*a, *b, *s) < 1.0)
+        .count();
     let single = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let blocked_n: usize = pairs.par_iter().filter(|(a, b, s)| bvh.transmittance(*a, *b, *s) < 1.0).count();
+    let blocked_n: usize = pairs
+        .par_iter()
+        .filter(|(a, b, s)| bvh.transmittance(*a, *b, *s) < 1.0)
+        .count();
     let multi = t.elapsed().as_secs_f64();
-    anyhow::ensure!(blocked_1 == blocked_n, "occlusion differs between thread counts");
+    anyhow::ensure!(
+        blocked_1 == blocked_n,
+        "occlusion differs between thread counts"
+    );
     println!(
         "{}: {} triangles, mesh+BVH {:.3} s; {} segments, {:.1} % occluded",
         scene.name,
@@ -347,7 +399,11 @@ pub fn occlusion(scene: &Scene, segments: usize) -> Result<()> {
         segments,
         100.0 * blocked_1 as f64 / segments.max(1) as f64
     );
-    println!("1 thread:  {:.3} s, {:.2} M rays/s", single, segments as f64 / single / 1e6);
+    println!(
+        "1 thread:  {:.3} s, {:.2} M rays/s",
+        single,
+        segments as f64 / single / 1e6
+    );
     println!(
         "{} threads: {:.3} s, {:.2} M rays/s",
         rayon::current_num_threads(),

@@ -30,7 +30,9 @@ impl std::str::FromStr for Reconstruction {
         match s {
             "flat" => Ok(Reconstruction::Flat),
             "gouraud" => Ok(Reconstruction::Gouraud),
-            _ => Err(format!("unknown reconstruction '{s}' (expected flat or gouraud)")),
+            _ => Err(format!(
+                "unknown reconstruction '{s}' (expected flat or gouraud)"
+            )),
         }
     }
 }
@@ -56,7 +58,11 @@ impl DisplayMesh {
             for k in 0..3 {
                 let p = e.verts[k];
                 let q = (p / quantum).round();
-                let key = ([q.x as i64, q.y as i64, q.z as i64], patch.material, patch.back);
+                let key = (
+                    [q.x as i64, q.y as i64, q.z as i64],
+                    patch.material,
+                    patch.back,
+                );
                 let slots = welded.entry(key).or_default();
                 let found = slots
                     .iter()

@@ -234,10 +234,16 @@ impl Mesh {
                 };
                 let scene_triangle = triangles.len() as u32;
                 triangles.push(verts);
-                transmittance.push(o.transmittance.get(ti).copied().unwrap_or(mat.transmittance));
+                transmittance.push(
+                    o.transmittance
+                        .get(ti)
+                        .copied()
+                        .unwrap_or(mat.transmittance),
+                );
                 // Degenerate: non-finite, or area below f32 resolution at this scale.
                 let a = area(&verts);
-                if !verts.iter().all(|p| p.is_finite()) || !(a > scale * scale * 1e-14) {
+                if !verts.iter().all(|p| p.is_finite()) || a.is_nan() || a <= scale * scale * 1e-14
+                {
                     degenerate += 1;
                     continue;
                 }
@@ -447,7 +453,10 @@ fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSetti
         return 1.0;
     }
     // The coarsest mesh has one element per patch side; no budget can go below it.
-    let coarsest: usize = sources.iter().map(|s| if s.double_sided { 2 } else { 1 }).sum();
+    let coarsest: usize = sources
+        .iter()
+        .map(|s| if s.double_sided { 2 } else { 1 })
+        .sum();
     // By default large scenes get half as many elements again as they have patch sides, so
     // their biggest triangles (floors, walls) are still subdivided.
     let budget = settings
@@ -458,7 +467,11 @@ fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSetti
         // Every triangle is one patch and one element: the size is that of the largest.
         return sources
             .iter()
-            .map(|s| (2.0 * area(&s.verts) as f64).sqrt().max(longest_edge(&s.verts).1 as f64 / PATCH_PER_ELEMENT))
+            .map(|s| {
+                (2.0 * area(&s.verts) as f64)
+                    .sqrt()
+                    .max(longest_edge(&s.verts).1 as f64 / PATCH_PER_ELEMENT)
+            })
             .fold(0.0, f64::max);
     }
     // Bisection on log(size): count_elements is monotone non-increasing in size. Start
@@ -542,7 +555,11 @@ mod tests {
             assert!((sum - p.area).abs() <= 1e-4 * p.area, "{sum} vs {}", p.area);
         }
         assert!(mesh.elements.len() <= DEFAULT_ELEMENTS);
-        assert!(mesh.elements.len() > DEFAULT_ELEMENTS / 8, "{}", mesh.elements.len());
+        assert!(
+            mesh.elements.len() > DEFAULT_ELEMENTS / 8,
+            "{}",
+            mesh.elements.len()
+        );
     }
 
     #[test]

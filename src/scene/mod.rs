@@ -82,7 +82,9 @@ impl Object {
             .transform_point3(self.positions[v as usize].as_dvec3())
     }
 
-    /// Whether the transform mirrors space (negative determinant), which flips winding.
+    /// Whether the transform mirrors space (negative determinant). The glTF loader has
+    /// already swapped the winding of such objects' triangles so that they are
+    /// counter-clockwise in world space; downstream code must not flip again.
     pub fn mirrors(&self) -> bool {
         self.world_from_local.determinant() < 0.0
     }

@@ -87,7 +87,13 @@ enum Face {
 }
 
 impl Face {
-    const ALL: [Face; 5] = [Face::Top, Face::PlusU, Face::MinusU, Face::PlusV, Face::MinusV];
+    const ALL: [Face; 5] = [
+        Face::Top,
+        Face::PlusU,
+        Face::MinusU,
+        Face::PlusV,
+        Face::MinusV,
+    ];
 
     /// (s across the face, t up the face, d depth) from frame coordinates.
     #[inline]
@@ -190,7 +196,10 @@ impl Hemicube {
             }
             self.draw(p.verts.map(to_frame), pi as u32, near);
         }
-        let own = mesh.patches.get(e.patch as usize).map(|p| p.scene_triangle as usize);
+        let own = mesh
+            .patches
+            .get(e.patch as usize)
+            .map(|p| p.scene_triangle as usize);
         for (ti, t) in mesh.triangles.iter().enumerate() {
             let clear = mesh.transmittance.get(ti).is_some_and(|&tr| tr >= 1.0);
             if covered[ti] || Some(ti) == own || clear || !t.iter().all(|p| p.is_finite()) {
@@ -267,7 +276,7 @@ impl Hemicube {
             (h, width * width + (face - 1) * width * h)
         };
         let area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
-        if !(area.abs() > 0.0) || !area.is_finite() {
+        if area.is_nan() || area == 0.0 || !area.is_finite() {
             return;
         }
         let lo = p[0].min(p[1]).min(p[2]);
@@ -354,7 +363,9 @@ pub fn hemicube_row(mesh: &Mesh, element: usize, resolution: u32) -> Vec<(u32, f
         if cache.as_ref().is_none_or(|h| h.resolution() != wanted) {
             *cache = None;
         }
-        cache.get_or_insert_with(|| Hemicube::new(wanted)).row(mesh, element)
+        cache
+            .get_or_insert_with(|| Hemicube::new(wanted))
+            .row(mesh, element)
     })
 }
 
@@ -375,7 +386,11 @@ mod tests {
 
     #[test]
     fn clipping_keeps_the_near_side() {
-        let p = [DVec3::new(0.0, 0.0, -1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::new(0.0, 1.0, 1.0)];
+        let p = [
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(0.0, 1.0, 1.0),
+        ];
         let (q, m) = clip_near(&p, 0.5);
         assert_eq!(m, 4);
         assert!(q[..m].iter().all(|v| v.z >= 0.5));

@@ -87,7 +87,8 @@ pub fn irradiance(
                 let c = n.dot(to_light);
                 if c > 0.0 {
                     rays += 1;
-                    h += *irradiance * (c * bvh.transmittance(from, from + to_light * far, [own, u32::MAX]));
+                    h += *irradiance
+                        * (c * bvh.transmittance(from, from + to_light * far, [own, u32::MAX]));
                 }
             }
         }

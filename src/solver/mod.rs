@@ -161,7 +161,9 @@ pub enum StepOutcome {
 /// Errors the solver reports instead of panicking.
 #[derive(Debug, thiserror::Error)]
 pub enum SolverError {
-    #[error("{method} needs the full form-factor matrix: {elements} elements × {patches} patches is too large (limit {limit} pairs); use --method progressive or a coarser mesh")]
+    #[error(
+        "{method} needs the full form-factor matrix: {elements} elements × {patches} patches is too large (limit {limit} pairs); use --method progressive or a coarser mesh"
+    )]
     TooLarge {
         method: Method,
         elements: usize,
@@ -236,9 +238,17 @@ fn sum3d(v: DVec3) -> f64 {
 
 impl Solver {
     /// A solver for `mesh` with visibility from `bvh` and the scene's external `lights`.
-    pub fn new(mesh: Arc<Mesh>, bvh: Arc<Bvh>, external: ExternalLight, settings: SolverSettings) -> Result<Solver, SolverError> {
+    pub fn new(
+        mesh: Arc<Mesh>,
+        bvh: Arc<Bvh>,
+        external: ExternalLight,
+        settings: SolverSettings,
+    ) -> Result<Solver, SolverError> {
         let (n, m) = (mesh.elements.len(), mesh.patches.len());
-        let needs_matrix = matches!(settings.method, Method::Jacobi | Method::GaussSeidel | Method::Direct);
+        let needs_matrix = matches!(
+            settings.method,
+            Method::Jacobi | Method::GaussSeidel | Method::Direct
+        );
         if needs_matrix && n.saturating_mul(m) > MAX_MATRIX_PAIRS {
             return Err(SolverError::TooLarge {
                 method: settings.method,
@@ -345,7 +355,11 @@ impl Solver {
 
     /// Radiosity for display: B plus, when `with_ambient`, ρ times the ambient term.
     pub fn display_radiosity(&self, with_ambient: bool) -> Vec<Vec3> {
-        let ambient = if with_ambient { self.ambient() } else { Vec3::ZERO };
+        let ambient = if with_ambient {
+            self.ambient()
+        } else {
+            Vec3::ZERO
+        };
         self.radiosity
             .iter()
             .zip(&self.reflectance)
@@ -387,7 +401,11 @@ impl Solver {
     }
 
     /// Steps until converged, cancelled or `time_limit` has passed; returns the last outcome.
-    pub fn run(&mut self, time_limit: Option<Duration>, cancel: &AtomicBool) -> Result<StepOutcome, SolverError> {
+    pub fn run(
+        &mut self,
+        time_limit: Option<Duration>,
+        cancel: &AtomicBool,
+    ) -> Result<StepOutcome, SolverError> {
         let start = Instant::now();
         loop {
             let outcome = self.step(cancel)?;
@@ -415,7 +433,15 @@ impl Solver {
                 let e = &mesh.elements[i];
                 let p = &mesh.patches[e.patch as usize];
                 let (h, rays) = if has_external {
-                    lighting::irradiance(mesh, bvh, external, e.centroid(), e.normal, p.scene_triangle, form_factor::hash(i as u64))
+                    lighting::irradiance(
+                        mesh,
+                        bvh,
+                        external,
+                        e.centroid(),
+                        e.normal,
+                        p.scene_triangle,
+                        form_factor::hash(i as u64),
+                    )
                 } else {
                     (Vec3::ZERO, 0)
                 };
@@ -480,7 +506,11 @@ impl Solver {
             self.rows.push(row);
             self.stats.rays += rays;
         }
-        self.phase = if end < n { Phase::Rows(end) } else { Phase::Iterating };
+        self.phase = if end < n {
+            Phase::Rows(end)
+        } else {
+            Phase::Iterating
+        };
     }
 
     /// Area-weighted patch means B̄_p of per-element values.
@@ -605,7 +635,10 @@ impl Solver {
                 }
                 Pending {
                     sources,
-                    rays: self.settings.stochastic_rays.unwrap_or((16 * n).max(1 << 18)),
+                    rays: self
+                        .settings
+                        .stochastic_rays
+                        .unwrap_or((16 * n).max(1 << 18)),
                     next_chunk: 0,
                     added: vec![DVec3::ZERO; n],
                     arrived: 0.0,
@@ -616,13 +649,21 @@ impl Solver {
         let chunks = p.rays.div_ceil(stochastic::CHUNK_RAYS);
         let end = (p.next_chunk + 2 * rayon::current_num_threads().max(1)).min(chunks);
         let iteration = self.stats.iterations;
-        let (bvh, refl, unshot, src, rays) = (&self.bvh, &self.reflectance, &self.unshot, &p.sources, p.rays);
+        let (bvh, refl, unshot, src, rays) = (
+            &self.bvh,
+            &self.reflectance,
+            &self.unshot,
+            &p.sources,
+            p.rays,
+        );
         let parts: Vec<stochastic::Deposits> = (p.next_chunk..end)
             .into_par_iter()
             .map(|c| {
                 let first = c * stochastic::CHUNK_RAYS;
                 let count = stochastic::CHUNK_RAYS.min(rays - first);
-                stochastic::trace_chunk(&mesh, bvh, refl, unshot, src, rays, first, count, iteration)
+                stochastic::trace_chunk(
+                    &mesh, bvh, refl, unshot, src, rays, first, count, iteration,
+                )
             })
             .collect();
         for part in parts {
@@ -631,7 +672,8 @@ impl Solver {
                 p.added[j as usize] += add;
             }
         }
-        let traced = (end * stochastic::CHUNK_RAYS).min(p.rays) - p.next_chunk * stochastic::CHUNK_RAYS;
+        let traced =
+            (end * stochastic::CHUNK_RAYS).min(p.rays) - p.next_chunk * stochastic::CHUNK_RAYS;
         self.stats.rays += traced as u64;
         p.next_chunk = end;
         if end < chunks {
@@ -712,7 +754,8 @@ impl Solver {
             for (q, patch) in mesh.patches.iter().enumerate() {
                 for i in patch.elements.clone() {
                     let i = i as usize;
-                    let w = (mesh.elements[i].area / patch.area) as f64 * self.reflectance[i][c] as f64;
+                    let w =
+                        (mesh.elements[i].area / patch.area) as f64 * self.reflectance[i][c] as f64;
                     if w == 0.0 {
                         continue;
                     }
@@ -751,8 +794,17 @@ impl Solver {
             .rows
             .iter()
             .zip(&self.mesh.elements)
-            .map(|(row, e)| row.iter().map(|&(p, f)| sum3d(means[p as usize]) * f as f64).sum::<f64>() * e.area as f64)
+            .map(|(row, e)| {
+                row.iter()
+                    .map(|&(p, f)| sum3d(means[p as usize]) * f as f64)
+                    .sum::<f64>()
+                    * e.area as f64
+            })
             .sum();
-        if leaving > 0.0 { arriving / leaving } else { 1.0 }
+        if leaving > 0.0 {
+            arriving / leaving
+        } else {
+            1.0
+        }
     }
 }

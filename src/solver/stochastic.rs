@@ -56,6 +56,9 @@ impl Sources {
 }
 
 /// Traces rays `first..first + count` of iteration `iteration` (seeded by both).
+// The arguments are the read-only inputs of one independent chunk of work; bundling them
+// into a struct would only move the list.
+#[allow(clippy::too_many_arguments)]
 pub fn trace_chunk(
     mesh: &Mesh,
     bvh: &Bvh,
@@ -79,7 +82,10 @@ pub fn trace_chunk(
     for r in first..first + count {
         let h = hash((iteration << 40) ^ r as u64);
         let x = unit(h) as f64 * sources.total;
-        let i = sources.cdf.partition_point(|c| *c < x).min(sources.cdf.len() - 1);
+        let i = sources
+            .cdf
+            .partition_point(|c| *c < x)
+            .min(sources.cdf.len() - 1);
         let u = unshot[i];
         let s = u.x + u.y + u.z;
         if s <= 0.0 {
@@ -98,7 +104,8 @@ pub fn trace_chunk(
         let (r1, r2) = (unit(hash(h ^ 0x1F3)), unit(hash(h ^ 0x2E7)));
         let rad = r1.sqrt();
         let phi = std::f32::consts::TAU * r2;
-        let dir = t * (rad * phi.cos()) + bt * (rad * phi.sin()) + e.normal * (1.0 - r1).max(0.0).sqrt();
+        let dir =
+            t * (rad * phi.cos()) + bt * (rad * phi.sin()) + e.normal * (1.0 - r1).max(0.0).sqrt();
         let mut power = u * (share / s);
         let mut from = origin + e.normal * eps;
         let mut skip = patch.scene_triangle;
@@ -107,7 +114,11 @@ pub fn trace_chunk(
                 break;
             };
             let p = from + dir * hit.t;
-            let tau = mesh.transmittance.get(hit.triangle as usize).copied().unwrap_or(0.0) as f64;
+            let tau = mesh
+                .transmittance
+                .get(hit.triangle as usize)
+                .copied()
+                .unwrap_or(0.0) as f64;
             if let Some(j) = mesh.element_at(hit.triangle, p, -dir) {
                 let j = j as usize;
                 let absorbed = power * (1.0 - tau);

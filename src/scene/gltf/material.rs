@@ -93,7 +93,8 @@ pub(super) fn convert(
         .map(str::to_string)
         .unwrap_or_else(|| format!("material {i}"));
     let at = format!("materials[{i}] ('{name}')");
-    let mut w = |m: String| warn.line(format!("{at}: {m}"));
+    // Problems are collected here and written as warnings at the end.
+    let mut problems: Vec<String> = Vec::new();
     let pbr = def.get("pbrMetallicRoughness").filter(|v| v.is_object());
 
     let mut base = [1.0f64; 4];
@@ -101,11 +102,11 @@ pub(super) fn convert(
         match json::numbers::<4>(p, "baseColorFactor") {
             Ok(Some(b)) => base = b,
             Ok(None) => {}
-            Err(e) => w(format!("{e}; using white")),
+            Err(e) => problems.push(format!("{e}; using white")),
         }
     }
     if sanitize(&mut base) {
-        w("negative or non-numeric baseColorFactor component set to 0".into());
+        problems.push("negative or non-numeric baseColorFactor component set to 0".into());
     }
     if base[..3].iter().any(|&c| c > 1.0) {
         warn.clamped_reflectance.push(name.clone());
@@ -113,27 +114,29 @@ pub(super) fn convert(
     let reflectance = Vec3::new(base[0] as f32, base[1] as f32, base[2] as f32)
         .clamp(Vec3::ZERO, Vec3::splat(MAX_REFLECTANCE));
     let base_alpha = base[3].min(1.0) as f32;
-    let mut w = |m: String| warn.line(format!("{at}: {m}"));
 
     let mut emissive = match json::numbers::<3>(def, "emissiveFactor") {
         Ok(e) => e.unwrap_or([0.0; 3]),
         Err(e) => {
-            w(format!("{e}; no emission"));
+            problems.push(format!("{e}; no emission"));
             [0.0; 3]
         }
     };
     if sanitize(&mut emissive) {
-        w("negative or non-numeric emissiveFactor component set to 0".into());
+        problems.push("negative or non-numeric emissiveFactor component set to 0".into());
+    }
+    if emissive.iter().any(|&e| e > 1.0) {
+        warn.hdr_emission.push(name.clone());
     }
     let mut strength = 1.0f64;
     if let Some(ext) = json::extension(def, "KHR_materials_emissive_strength") {
         match json::number(ext, "emissiveStrength") {
             Ok(Some(s)) if s.is_finite() && s >= 0.0 => strength = s,
             Ok(None) => {}
-            Ok(Some(s)) => w(format!(
+            Ok(Some(s)) => problems.push(format!(
                 "emissiveStrength {s} is invalid (must be ≥ 0); using 1"
             )),
-            Err(e) => w(format!("KHR_materials_emissive_strength: {e}; using 1")),
+            Err(e) => problems.push(format!("KHR_materials_emissive_strength: {e}; using 1")),
         }
     }
     // Products in f64 so that factor × strength written by `write_gltf` round-trips exactly.
@@ -144,7 +147,7 @@ pub(super) fn convert(
     );
 
     let double_sided = json::boolean(def, "doubleSided").unwrap_or_else(|e| {
-        w(format!("{e}; single-sided"));
+        problems.push(format!("{e}; single-sided"));
         None
     });
     let alpha_mode = match json::string(def, "alphaMode") {
@@ -155,22 +158,22 @@ pub(super) fn convert(
                 Ok(Some(c)) if c.is_finite() && c >= 0.0 => c as f32,
                 Ok(None) => 0.5,
                 Ok(Some(c)) => {
-                    w(format!("alphaCutoff {c} is invalid; using 0.5"));
+                    problems.push(format!("alphaCutoff {c} is invalid; using 0.5"));
                     0.5
                 }
                 Err(e) => {
-                    w(format!("{e}; using 0.5"));
+                    problems.push(format!("{e}; using 0.5"));
                     0.5
                 }
             };
             AlphaMode::Mask(cutoff)
         }
         Ok(Some(other)) => {
-            w(format!("unknown alphaMode '{other}'; opaque"));
+            problems.push(format!("unknown alphaMode '{other}'; opaque"));
             AlphaMode::Opaque
         }
         Err(e) => {
-            w(format!("{e}; opaque"));
+            problems.push(format!("{e}; opaque"));
             AlphaMode::Opaque
         }
     };
@@ -179,13 +182,13 @@ pub(super) fn convert(
         match json::number(ext, "transmissionFactor") {
             Ok(Some(t)) if t.is_finite() => {
                 if !(0.0..=1.0).contains(&t) {
-                    w(format!("transmissionFactor {t} is outside [0, 1]; clamped"));
+                    problems.push(format!("transmissionFactor {t} is outside [0, 1]; clamped"));
                 }
                 transmission = t.clamp(0.0, 1.0) as f32;
             }
-            Ok(Some(t)) => w(format!("transmissionFactor {t} is invalid; opaque")),
+            Ok(Some(t)) => problems.push(format!("transmissionFactor {t} is invalid; opaque")),
             Ok(None) => {}
-            Err(e) => w(format!("KHR_materials_transmission: {e}; opaque")),
+            Err(e) => problems.push(format!("KHR_materials_transmission: {e}; opaque")),
         }
     }
 
@@ -194,7 +197,7 @@ pub(super) fn convert(
         match texture::resolve(root, info) {
             Ok(t) => Some(t),
             Err(e) => {
-                w(format!("{what}: {e}; ignored (untextured)"));
+                problems.push(format!("{what}: {e}; ignored (untextured)"));
                 None
             }
         }
@@ -216,6 +219,9 @@ pub(super) fn convert(
         base_alpha,
         transmission,
     };
+    for p in problems {
+        warn.line(format!("{at}: {p}"));
+    }
     let material = Material {
         name,
         reflectance,

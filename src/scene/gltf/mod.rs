@@ -212,14 +212,13 @@ fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError>
     };
     loader.run().map_err(invalid)?;
     let Loader {
-        warn,
+        mut warn,
         materials,
         objects,
         lights,
         buffers,
         ..
     } = loader;
-    let mut warn = warn;
     for n in buffers.notes.take() {
         warn.line(n);
     }
@@ -233,6 +232,7 @@ fn load_bytes(shown: &str, dir: &Path, bytes: &[u8]) -> Result<Scene, LoadError>
     })
 }
 
+/// The state of one load: the parsed file, what has been built so far, and the warnings.
 struct Loader<'a> {
     root: &'a Value,
     dir: &'a Path,
@@ -256,11 +256,6 @@ impl Loader<'_> {
         let root = self.root;
         for (i, def) in json::array(root, "materials")?.iter().enumerate() {
             let (m, info) = material::convert(root, i, def, &mut self.warn);
-            if m.emission.max_element() > 1.0
-                && json::extension(def, "KHR_materials_emissive_strength").is_none()
-            {
-                self.warn.hdr_emission.push(m.name.clone());
-            }
             self.materials.push(m);
             self.infos.push(info);
         }

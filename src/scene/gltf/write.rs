@@ -1,7 +1,8 @@
 //! glTF 2.0 export of a [`Scene`]: one JSON file with one embedded base64 buffer.
 //!
-//! Geometry is written in world space (f32 positions, u32 indices, one node and one mesh
-//! per object, one primitive per material used), so transforms need not round-trip.
+//! Geometry is written in world space (f32 positions, u32 indices; one node and one mesh
+//! per object; one primitive per run of consecutive triangles sharing a material, so that
+//! loading gives the triangles back in order), so transforms need not round-trip.
 //! Materials round-trip through [`super::load`]: `baseColorFactor` = reflectance;
 //! emission L_e as `emissiveFactor` = L_e / max(L_e) with `KHR_materials_emissive_strength`
 //! = max(L_e) when that exceeds 1 (the factor must stay in [0, 1]); transmittance as
@@ -13,7 +14,6 @@ use crate::scene::{Light, Scene};
 use base64::Engine as _;
 use glam::{DQuat, DVec3, Vec3};
 use serde_json::{Map, Value, json};
-use std::collections::BTreeMap;
 
 /// An f32 as the JSON number with the shortest decimal that reads back as the same f32
 /// (`0.725`, not `0.7250000238418579`). Non-finite values become 0.
@@ -75,13 +75,18 @@ pub fn write_gltf(scene: &Scene) -> String {
             "type": "VEC3", "min": vec3(lo), "max": vec3(hi)
         }));
         // Triangles are already counter-clockwise in world space (the scene convention).
-        let mut by_material: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+        // One primitive per run of consecutive triangles with the same material, so that
+        // loading gives the triangles back in the same order.
+        let mut runs: Vec<(u32, Vec<u32>)> = Vec::new();
         for (t, tri) in object.triangles.iter().enumerate() {
             let m = object.triangle_material.get(t).copied().unwrap_or(0);
-            by_material.entry(m).or_default().extend_from_slice(tri);
+            match runs.last_mut() {
+                Some((last, indices)) if *last == m => indices.extend_from_slice(tri),
+                _ => runs.push((m, tri.to_vec())),
+            }
         }
         let mut primitives = Vec::new();
-        for (material, indices) in by_material {
+        for (material, indices) in runs {
             let offset = bin.len();
             for i in &indices {
                 bin.extend_from_slice(&i.to_le_bytes());

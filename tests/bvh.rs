@@ -1,0 +1,264 @@
+//! The BVH against brute force: for random triangle soups (clustered, overlapping,
+//! degenerate, at millimetre and kilometre scales) and random segments and rays, every
+//! query must give what testing each triangle in f64 gives.
+//!
+//! The reference is an independent f64 segment/triangle test (signed volumes, not
+//! Möller–Trumbore), so a shared bug cannot hide. The BVH works in f32: a segment passing
+//! within f32 rounding of a triangle's edge, or crossing its plane within rounding of the
+//! ends the BVH ignores (the first and last 1e-4 of the segment), may go either way. Such
+//! near-ties are detected in f64 with a margin of 1e-3 relative (≈ 8000 f32 ulps, far
+//! above the rounding of any single f32 operation at these magnitudes) and excluded from
+//! the comparison; everything else must agree exactly. The test also checks that not too
+//! many cases were excluded, so it cannot pass by excluding everything.
+
+use glam::{DVec3, Vec3};
+use proptest::prelude::*;
+use radiosity::accel::Bvh;
+
+/// f64 copy of a triangle.
+fn d(t: &[Vec3; 3]) -> [DVec3; 3] {
+    [t[0].as_dvec3(), t[1].as_dvec3(), t[2].as_dvec3()]
+}
+
+#[derive(Debug, PartialEq)]
+enum Crossing {
+    No,
+    Yes(f64),
+    /// Too close to call in f32.
+    Tie,
+}
+
+/// Whether the segment `a + t (b − a)`, `t ∈ (lo, hi)`, crosses triangle `t` (either side),
+/// by signed volumes: the line crosses the triangle iff the three edge volumes share a
+/// sign; the parameter is from the plane equation. Near-zero volumes or parameters within
+/// `margin` of the bounds are ties.
+fn crossing(a: DVec3, b: DVec3, t: &[DVec3; 3], lo: f64, hi: f64) -> Crossing {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let dir = b - a;
+    let scale = (t[1] - t[0])
+        .length()
+        .max((t[2] - t[0]).length())
+        .max(dir.length());
+    // Degenerate (zero-area) triangles can never block in either implementation beyond a
+    // tie; call them ties when nearly degenerate.
+    if n.length() <= 1e-6 * scale * scale {
+        return Crossing::Tie;
+    }
+    let denom = n.dot(dir);
+    let rel = denom.abs() / (n.length() * dir.length());
+    if rel < 1e-3 {
+        // Segment nearly parallel to the plane.
+        return if (n.dot(a - t[0]) / n.length()).abs() > 1e-3 * scale {
+            Crossing::No
+        } else {
+            Crossing::Tie
+        };
+    }
+    let s = n.dot(t[0] - a) / denom;
+    let margin = 1e-3;
+    // Edge volumes: sign of (dir × (v_j − a)) · (v_k − a) style triple products.
+    let vol = |p: DVec3, q: DVec3| dir.cross(p - a).dot(q - a);
+    let w = [vol(t[0], t[1]), vol(t[1], t[2]), vol(t[2], t[0])];
+    let wsum: f64 = w.iter().map(|x| x.abs()).sum();
+    let inside = (w.iter().all(|&x| x > 0.0) || w.iter().all(|&x| x < 0.0)) as i32;
+    let near_edge = w.iter().any(|&x| x.abs() < margin * wsum);
+    let near_end = (s - lo).abs() < margin || (s - hi).abs() < margin;
+    if near_edge || near_end {
+        return Crossing::Tie;
+    }
+    if inside == 1 && s > lo && s < hi {
+        Crossing::Yes(s)
+    } else {
+        Crossing::No
+    }
+}
+
+/// A triangle soup: clusters of random triangles of mixed sizes, some duplicated
+/// exactly (coplanar overlap), some slivers, all scaled by `scale` about `offset`.
+fn soup() -> impl Strategy<Value = (Vec<[Vec3; 3]>, f64, [f64; 3])> {
+    let tri = (
+        prop::array::uniform3(-1.0f64..1.0),
+        prop::array::uniform3(-0.3f64..0.3),
+        prop::array::uniform3(-0.3f64..0.3),
+        0u8..4,
+    );
+    (
+        prop::collection::vec(tri, 1..120),
+        prop::sample::select(vec![1e-3, 1.0, 1e3]),
+        prop::array::uniform3(-1.0f64..1.0),
+    )
+        .prop_map(|(tris, scale, offset)| {
+            let off = DVec3::from(offset) * scale * 10.0;
+            let mut out = Vec::new();
+            for (c, e1, e2, kind) in tris {
+                let c = DVec3::from(c);
+                let (e1, mut e2) = (DVec3::from(e1), DVec3::from(e2));
+                if kind == 1 {
+                    // Sliver: aspect ~1e3.
+                    e2 = e1 * 0.5 + e1.cross(DVec3::Z).normalize_or_zero() * 1e-3 * e1.length();
+                }
+                let t = [c, c + e1, c + e2].map(|p| (p * scale + off).as_vec3());
+                // Leave out triangles too thin to call (the reference calls every segment
+                // near them a tie); zero-area ones are tested separately.
+                let dt = d(&t);
+                if (dt[1] - dt[0]).cross(dt[2] - dt[0]).length() <= 1e-5 * scale * scale {
+                    continue;
+                }
+                out.push(t);
+                if kind == 2 {
+                    out.push(t); // an exact duplicate
+                }
+            }
+            (out, scale, offset)
+        })
+        .prop_filter("no triangle left", |(t, _, _)| !t.is_empty())
+}
+
+fn segments(n: usize) -> impl Strategy<Value = Vec<([f64; 3], [f64; 3])>> {
+    prop::collection::vec(
+        (
+            prop::array::uniform3(-1.5f64..1.5),
+            prop::array::uniform3(-1.5f64..1.5),
+        ),
+        n,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    #[test]
+    fn occlusion_and_closest_hit_match_brute_force(
+        (tris, scale, offset) in soup(),
+        segs in segments(40),
+        opacity in prop::collection::vec(prop::sample::select(vec![0.0f32, 0.25, 1.0]), 240),
+    ) {
+        let transmittance: Vec<f32> = (0..tris.len()).map(|i| opacity[i % opacity.len()]).collect();
+        let bvh = Bvh::build(&tris, &transmittance);
+        prop_assert!(bvh.validate().is_ok(), "{:?}", bvh.validate());
+        let off = DVec3::from(offset) * scale * 10.0;
+        let dtris: Vec<[DVec3; 3]> = tris.iter().map(d).collect();
+        let (mut compared, mut ties) = (0, 0);
+        for (a, b) in segs {
+            let a = (DVec3::from(a) * scale + off).as_vec3();
+            let b = (DVec3::from(b) * scale + off).as_vec3();
+            let (ad, bd) = (a.as_dvec3(), b.as_dvec3());
+            if (bd - ad).length() < 1e-3 * scale {
+                continue;
+            }
+            // Segment transmittance: product over crossed triangles in (1e-4, 1 − 1e-4).
+            let mut want = 1.0f64;
+            let mut tie = false;
+            // Closest hit along the ray a → b for t in (0.01, 0.99) of the segment.
+            let mut nearest: Option<(f64, usize)> = None;
+            let mut ray_tie = false;
+            for (i, t) in dtris.iter().enumerate() {
+                match crossing(ad, bd, t, 1e-4, 1.0 - 1e-4) {
+                    Crossing::Yes(_) => want *= transmittance[i] as f64,
+                    Crossing::Tie => tie = true,
+                    Crossing::No => {}
+                }
+                match crossing(ad, bd, t, 0.01, 0.99) {
+                    Crossing::Yes(s) => {
+                        if let Some((s0, _)) = nearest
+                            && (s - s0).abs() < 1e-3
+                        {
+                            ray_tie = true; // two hits too close to order in f32
+                        }
+                        if nearest.is_none_or(|(s0, _)| s < s0) {
+                            nearest = Some((s, i));
+                        }
+                    }
+                    Crossing::Tie => ray_tie = true,
+                    Crossing::No => {}
+                }
+            }
+            if tie {
+                ties += 1;
+            } else {
+                compared += 1;
+                let got = bvh.transmittance(a, b, [u32::MAX; 2]) as f64;
+                prop_assert!(
+                    (got - want).abs() < 1e-6,
+                    "segment {a} → {b}: transmittance {got}, brute force {want}"
+                );
+                prop_assert_eq!(bvh.occluded(a, b), want < 1.0);
+            }
+            if !ray_tie {
+                let hit = bvh.closest_hit(a, b - a, 0.01, 0.99, u32::MAX);
+                match (hit, nearest) {
+                    (None, None) => {}
+                    (Some(h), Some((s, i))) => {
+                        // Exact duplicates are interchangeable.
+                        prop_assert!(
+                            tris[h.triangle as usize] == tris[i],
+                            "segment {a} → {b}: hit {} at {}, brute force {i} at {s}",
+                            h.triangle, h.t
+                        );
+                        prop_assert!(((h.t as f64) - s).abs() < 1e-4, "t {} vs {s}", h.t);
+                    }
+                    (h, n) => prop_assert!(false, "segment {a} → {b}: BVH {h:?}, brute force {n:?}"),
+                }
+            }
+        }
+        // Near-ties are rare; a comparison that excluded most cases would prove nothing.
+        let total = compared + ties;
+        prop_assert!(total < 20 || ties * 2 <= total, "{ties} ties of {total}");
+    }
+}
+
+/// Thousands of triangles with one shared centroid (a fan of slivers through a point): the
+/// builder cannot split by centroid, must still bound its depth, and every query must
+/// still find the triangles.
+#[test]
+fn coincident_centroids_build_a_valid_tree() {
+    let n = 5000;
+    let tris: Vec<[Vec3; 3]> = (0..n)
+        .map(|k| {
+            let a = k as f32 * std::f32::consts::TAU / n as f32;
+            let u = Vec3::new(a.cos(), a.sin(), 0.0);
+            let w = Vec3::new(-a.sin(), a.cos(), 0.0) * 0.01;
+            // Centroid (p0 + p1 + p2)/3 = 0 for p0 = u, p1 = −u + w, p2 = −w.
+            [u, -u + w, -w]
+        })
+        .collect();
+    let bvh = Bvh::build(&tris, &[]);
+    bvh.validate().unwrap();
+    // A segment through the common centre crosses them.
+    assert!(bvh.occluded(
+        Vec3::new(0.001, 0.0013, -1.0),
+        Vec3::new(0.001, 0.0013, 1.0)
+    ));
+    // A segment beside the disc does not.
+    assert!(!bvh.occluded(Vec3::new(2.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 1.0)));
+}
+
+#[test]
+fn zero_area_and_non_finite_triangles_block_nothing() {
+    let tris = [
+        [Vec3::ZERO, Vec3::X, Vec3::X * 2.0], // collinear
+        [Vec3::ONE, Vec3::ONE, Vec3::ONE],    // a point
+        [Vec3::NAN, Vec3::X, Vec3::Y],        // NaN
+        [Vec3::INFINITY, Vec3::X, Vec3::Y],   // infinite
+    ];
+    let bvh = Bvh::build(&tris, &[]);
+    bvh.validate().unwrap();
+    for (a, b) in [
+        (Vec3::new(1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0)),
+        (Vec3::new(0.2, 0.2, -1.0), Vec3::new(0.2, 0.2, 1.0)),
+        (Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 2.0)),
+    ] {
+        assert!(!bvh.occluded(a, b), "{a} → {b}");
+    }
+}
+
+#[test]
+fn an_empty_tree_blocks_nothing() {
+    let bvh = Bvh::build(&[], &[]);
+    assert!(bvh.is_empty());
+    assert!(!bvh.occluded(Vec3::ZERO, Vec3::ONE));
+    assert!(
+        bvh.closest_hit(Vec3::ZERO, Vec3::ONE, 0.0, 1.0, u32::MAX)
+            .is_none()
+    );
+}

@@ -1,0 +1,946 @@
+//! Form factors against independent truth: closed forms from the radiation literature, the
+//! conservation laws of the discrete system (reciprocity, closed-enclosure row sums) and the
+//! hemicube as a second, independently written estimator.
+//!
+//! Closed forms are cited from J. R. Howell, *A Catalog of Radiation Heat Transfer
+//! Configuration Factors* (3rd ed., thermalradiation.net; also Siegel & Howell, *Thermal
+//! Radiation Heat Transfer*, appendix C), by catalogue number. Where a formula is
+//! transcribed, it is first checked against a brute-force quadrature of the defining integral
+//! F = ∫ cosθ_i cosθ_j / (π s²) dA or against a value printed in the literature, so that a
+//! transcription error cannot pass for a bug (or hide one).
+//!
+//! Tolerances: `point_to_polygon` evaluates Lambert's contour integral in f64 and returns f32,
+//! so a single value carries a relative error of about 2⁻²⁴ ≈ 6e-8; vertices are given in f32
+//! but every closed form here is evaluated from the same f32 values, so input rounding does
+//! not count. Sums of a few hundred such values in f64 stay within 1e-6 relative.
+
+use glam::{DVec3, Vec3};
+use radiosity::accel::Bvh;
+use radiosity::mesh::{Mesh, MeshSettings, subdivide};
+use radiosity::pipeline::Prepared;
+use radiosity::scene::{Material, Object, Scene, builtin};
+use radiosity::solver::form_factor::{FormFactorSettings, element_to_patch, point_to_polygon};
+use radiosity::solver::hemicube::{Hemicube, hemicube_row};
+use std::f64::consts::PI;
+
+/// Relative error of one f32 form factor plus f64 summation: a few ulps of f32.
+const F32_REL: f64 = 1e-6;
+
+fn ptp(p: Vec3, n: Vec3, poly: &[Vec3]) -> f64 {
+    point_to_polygon(p, n, poly) as f64
+}
+
+/// The quad corner, corner + u, corner + u + v, corner + v.
+fn quad(corner: Vec3, u: Vec3, v: Vec3) -> [Vec3; 4] {
+    [corner, corner + u, corner + u + v, corner + v]
+}
+
+/// Form factor to a quad given as two triangles (their sum: disjoint pieces add).
+fn ptp_two_triangles(p: Vec3, n: Vec3, q: &[Vec3; 4]) -> f64 {
+    ptp(p, n, &[q[0], q[1], q[2]]) + ptp(p, n, &[q[0], q[2], q[3]])
+}
+
+/// Form factor to a regular `sides`-gon of circumradius `radius` centred at `centre` in the
+/// plane z = centre.z, as a fan of triangles (`point_to_polygon` takes at most six vertices).
+fn ptp_ngon(p: Vec3, n: Vec3, centre: Vec3, radius: f64, sides: usize) -> f64 {
+    let vertex = |k: usize| {
+        let a = 2.0 * PI * k as f64 / sides as f64;
+        centre + Vec3::new((radius * a.cos()) as f32, (radius * a.sin()) as f32, 0.0)
+    };
+    (0..sides)
+        .map(|k| ptp(p, n, &[centre, vertex(k), vertex(k + 1)]))
+        .sum()
+}
+
+/// Brute-force midpoint quadrature of F = ∫ cosθ_i cosθ_j / (π s²) dA over the
+/// parallelogram corner + [0,1]u + [0,1]v (both sides count as its front when facing p),
+/// `m × m` cells, f64. Used only to check the transcription of closed forms.
+fn quadrature(p: DVec3, n: DVec3, corner: DVec3, u: DVec3, v: DVec3, m: usize) -> f64 {
+    let nq = u.cross(v);
+    let da = nq.length() / (m * m) as f64;
+    let nq = nq.normalize();
+    let mut sum = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let y = corner + u * ((i as f64 + 0.5) / m as f64) + v * ((j as f64 + 0.5) / m as f64);
+            let d = y - p;
+            let s2 = d.length_squared();
+            let s = s2.sqrt();
+            let ci = n.dot(d) / s;
+            let cj = (nq.dot(d) / s).abs();
+            if ci > 0.0 {
+                sum += ci * cj / (PI * s2) * da;
+            }
+        }
+    }
+    sum
+}
+
+fn assert_close(got: f64, want: f64, rel: f64, what: &str) {
+    assert!(
+        got.is_finite() && (got - want).abs() <= rel * want.abs() + 1e-12,
+        "{what}: got {got:.9e}, want {want:.9e} (relative error {:.2e} > {rel:.0e})",
+        (got - want).abs() / want.abs()
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Differential area to finite area (Howell section B)
+// ---------------------------------------------------------------------------------------
+
+/// Howell B-3: plane element dA parallel to a rectangle a × b at distance c, on the normal
+/// through one of its corners. A = a/c, B = b/c:
+/// F = 1/(2π) [A/√(1+A²) atan(B/√(1+A²)) + B/√(1+B²) atan(A/√(1+B²))].
+fn howell_b3(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
+}
+
+/// Plane element dA perpendicular to a rectangle (Howell B-8 with the planes at Φ = π/2;
+/// Hamilton & Morgan 1952): the rectangle spans a along the line where the element's plane
+/// meets the rectangle's plane and b away from the element's plane; the element lies at
+/// distance d from the rectangle's plane, on the normal to that line through a corner.
+/// With X = b/a, Y = d/a: F = 1/(2π) [atan(1/Y) − Y/√(X²+Y²) · atan(1/√(X²+Y²))].
+/// (Also Lambert's contour integral by hand: the edge in the element's plane gives
+/// atan(a/d), the far edge −d/√(b²+d²) · atan(a/√(b²+d²)), the other two nothing.)
+fn perpendicular_corner(a: f64, b: f64, d: f64) -> f64 {
+    let (x, y) = (b / a, d / a);
+    let r = (x * x + y * y).sqrt();
+    ((1.0 / y).atan() - y / r * (1.0 / r).atan()) / (2.0 * PI)
+}
+
+#[test]
+fn closed_forms_for_points_match_brute_force_quadrature() {
+    // 1000² midpoint cells: relative error O((cell/distance)²) ≈ 1e-6 for these unit-scale
+    // cases; 1e-4 is a loose bound that still catches any transcription slip.
+    let m = 1000;
+    for (a, b, c) in [(1.0, 1.0, 1.0), (2.0, 0.5, 0.7)] {
+        let q = quadrature(
+            DVec3::ZERO,
+            DVec3::Z,
+            DVec3::new(0.0, 0.0, c),
+            DVec3::X * a,
+            DVec3::Y * b,
+            m,
+        );
+        assert_close(howell_b3(a, b, c), q, 1e-4, "B-3 vs quadrature");
+    }
+    for (a, b, d) in [(1.0, 1.0, 1.0), (2.0, 0.5, 0.3)] {
+        let q = quadrature(
+            DVec3::ZERO,
+            DVec3::Z,
+            DVec3::new(0.0, d, 0.0),
+            DVec3::X * a,
+            DVec3::Z * b,
+            m,
+        );
+        assert_close(
+            perpendicular_corner(a, b, d),
+            q,
+            1e-4,
+            "perpendicular vs quadrature",
+        );
+    }
+}
+
+#[test]
+fn point_to_parallel_rectangle_matches_howell_b3() {
+    // Includes near-contact (c → 0: F → 1/4, the corner's quarter hemisphere) and far field
+    // (c = 10⁴: F ≈ ab/(πc²) ≈ 3e-9, where the contour terms cancel to (a/c)²; f64 keeps
+    // ~1e-12 relative of that).
+    let cases = [
+        (1.0, 1.0, 1.0),
+        (2.0, 0.5, 1.0),
+        (0.3, 3.0, 0.7),
+        (1.0, 1.0, 1e-3),
+        (1.0, 1.0, 1e-6),
+        (5.0, 2.0, 1e-9),
+        (1.0, 1.0, 1e3),
+        (0.5, 2.0, 1e4),
+    ];
+    for (a, b, c) in cases {
+        let (a32, b32, c32) = (a as f32, b as f32, c as f32);
+        let rect = quad(Vec3::new(0.0, 0.0, c32), Vec3::X * a32, Vec3::Y * b32);
+        let want = howell_b3(a32 as f64, b32 as f64, c32 as f64);
+        let what = format!("B-3 a={a} b={b} c={c}");
+        assert_close(
+            ptp(Vec3::ZERO, Vec3::Z, &rect),
+            want,
+            F32_REL,
+            &format!("{what}, quad"),
+        );
+        assert_close(
+            ptp_two_triangles(Vec3::ZERO, Vec3::Z, &rect),
+            want,
+            F32_REL,
+            &format!("{what}, two triangles"),
+        );
+        // Either winding.
+        let mut rev = rect;
+        rev.reverse();
+        assert_close(
+            ptp(Vec3::ZERO, Vec3::Z, &rev),
+            want,
+            F32_REL,
+            &format!("{what}, reversed"),
+        );
+    }
+    // Touching: the point in the rectangle's plane (inside, at a corner, on an edge) or
+    // behind it. Any value must be finite and in [0, 1]; behind must be 0.
+    let rect = quad(Vec3::new(-1.0, -1.0, 0.0), Vec3::X * 2.0, Vec3::Y * 2.0);
+    for p in [
+        Vec3::ZERO,
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(0.0, 0.0, -1e-9),
+    ] {
+        for f in [ptp(p, Vec3::Z, &rect), ptp_two_triangles(p, Vec3::Z, &rect)] {
+            assert!(
+                f.is_finite() && (0.0..=1.0).contains(&f),
+                "touching at {p}: {f}"
+            );
+        }
+    }
+    assert_eq!(
+        ptp(Vec3::new(0.0, 0.0, 1e-3), Vec3::Z, &rect),
+        0.0,
+        "a rectangle behind the point"
+    );
+}
+
+#[test]
+fn point_to_perpendicular_rectangle_matches_closed_form() {
+    for (a, b, d) in [
+        (1.0, 1.0, 1.0),
+        (2.0, 0.5, 0.3),
+        (0.2, 3.0, 1.0),
+        (1.0, 1.0, 1e-6),
+        (1.0, 1.0, 1e3),
+    ] {
+        let (a32, b32, d32) = (a as f32, b as f32, d as f32);
+        let rect = quad(Vec3::new(0.0, d32, 0.0), Vec3::X * a32, Vec3::Z * b32);
+        let want = perpendicular_corner(a32 as f64, b32 as f64, d32 as f64);
+        let what = format!("perpendicular a={a} b={b} d={d}");
+        assert_close(ptp(Vec3::ZERO, Vec3::Z, &rect), want, F32_REL, &what);
+        assert_close(
+            ptp_two_triangles(Vec3::ZERO, Vec3::Z, &rect),
+            want,
+            F32_REL,
+            &what,
+        );
+    }
+}
+
+/// Howell B-13 (plane element to a parallel coaxial disc of radius r at height h):
+/// F = r² / (h² + r²).
+fn point_to_disc(r: f64, h: f64) -> f64 {
+    r * r / (h * h + r * r)
+}
+
+#[test]
+fn point_to_coaxial_disc_is_bracketed_by_polygons() {
+    // The disc is approximated by regular N-gons: the inscribed one (circumradius r) lies
+    // inside it and the circumscribed one (circumradius r / cos(π/N)) contains it. The kernel
+    // cosθ_i cosθ_j/(π s²) is positive, so F(inscribed) ≤ F(disc) ≤ F(circumscribed): a
+    // rigorous bracket. Its width is the area between them, N r² (tan(π/N) − sin(2π/N)/2)
+    // ≈ π r² (π/N)², times the largest kernel over that annulus, h²/(π (h² + (r cos π/N)²)²)
+    // for a point on the axis: ~1.5e-4 relative at N = 256.
+    let sides = 256;
+    let half = PI / sides as f64;
+    for (r, h) in [(1.0, 1.0), (0.5, 2.0), (3.0, 0.1), (1.0, 1e-4), (1e-3, 1.0)] {
+        let centre = Vec3::new(0.0, 0.0, h as f32);
+        let want = point_to_disc(r, h as f32 as f64);
+        let inner = ptp_ngon(Vec3::ZERO, Vec3::Z, centre, r, sides);
+        let outer = ptp_ngon(Vec3::ZERO, Vec3::Z, centre, r / half.cos(), sides);
+        let slack = F32_REL * want;
+        assert!(
+            inner <= want + slack && want <= outer + slack,
+            "r={r} h={h}: {inner} ≤ {want} ≤ {outer} fails"
+        );
+        let gap_area = sides as f64 * r * r * (half.tan() - (2.0 * half).sin() / 2.0);
+        let hh = h * h;
+        let kernel = hh / (PI * (hh + (r * half.cos()).powi(2)).powi(2));
+        assert!(
+            outer - inner <= gap_area * kernel + 2.0 * slack,
+            "r={r} h={h}: bracket {} wider than {}",
+            outer - inner,
+            gap_area * kernel
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Finite area to finite area (Howell section C): area averages of point values
+// ---------------------------------------------------------------------------------------
+
+/// Howell C-11: identical parallel directly opposed rectangles a × b at distance c.
+/// X = a/c, Y = b/c:
+/// F = 2/(πXY) { ln √[(1+X²)(1+Y²)/(1+X²+Y²)] + X√(1+Y²) atan(X/√(1+Y²))
+///               + Y√(1+X²) atan(Y/√(1+X²)) − X atan X − Y atan Y }.
+fn howell_c11(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    let log = (((1.0 + x * x) * (1.0 + y * y)) / (1.0 + x * x + y * y))
+        .sqrt()
+        .ln();
+    2.0 / (PI * x * y)
+        * (log + x * sy * (x / sy).atan() + y * sx * (y / sx).atan() - x * x.atan() - y * y.atan())
+}
+
+/// Howell C-14: rectangles at 90° sharing an edge of length l; A₁ is l × w, A₂ is l × h.
+/// H = h/l, W = w/l:
+/// ```text
+/// F₁₂ = 1/(πW) ( W atan(1/W) + H atan(1/H) − √(H²+W²) atan(1/√(H²+W²))
+///   + ¼ ln{ (1+W²)(1+H²)/(1+W²+H²) · [W²(1+W²+H²)/((1+W²)(W²+H²))]^{W²}
+///           · [H²(1+H²+W²)/((1+H²)(H²+W²))]^{H²} } ).
+/// ```
+fn howell_c14(l: f64, w: f64, h: f64) -> f64 {
+    let (hh, ww) = (h / l, w / l);
+    let (h2, w2) = (hh * hh, ww * ww);
+    let r = (h2 + w2).sqrt();
+    let log = ((1.0 + w2) * (1.0 + h2) / (1.0 + w2 + h2)).ln()
+        + w2 * (w2 * (1.0 + w2 + h2) / ((1.0 + w2) * (w2 + h2))).ln()
+        + h2 * (h2 * (1.0 + h2 + w2) / ((1.0 + h2) * (h2 + w2))).ln();
+    (ww * (1.0 / ww).atan() + hh * (1.0 / hh).atan() - r * (1.0 / r).atan() + 0.25 * log)
+        / (PI * ww)
+}
+
+/// Howell C-41: coaxial parallel discs, r₁ receiving, r₂ at distance h. R_i = r_i/h,
+/// X = 1 + (1 + R₂²)/R₁²: F₁₂ = ½ [X − √(X² − 4 (R₂/R₁)²)].
+fn howell_c41(r1: f64, r2: f64, h: f64) -> f64 {
+    let (a, b) = (r1 / h, r2 / h);
+    let x = 1.0 + (1.0 + b * b) / (a * a);
+    0.5 * (x - (x * x - 4.0 * (b / a).powi(2)).sqrt())
+}
+
+#[test]
+fn area_closed_forms_match_published_values() {
+    // Printed values: Siegel & Howell's example for C-11 (a = 1, b = 1.5, c = 0.5: 0.4756, as
+    // reproduced in EES's view factor library); the classic 0.2000 for perpendicular unit
+    // squares (C-14); 0.382 = (3 − √5)/2 for equal discs one radius apart (C-41).
+    assert!((howell_c11(1.0, 1.5, 0.5) - 0.4756).abs() < 5e-5);
+    assert!((howell_c14(1.0, 1.0, 1.0) - 0.200_044).abs() < 1e-6);
+    assert!((howell_c41(1.0, 1.0, 1.0) - (3.0 - 5f64.sqrt()) / 2.0).abs() < 1e-12);
+}
+
+/// Midpoint-rule average of `f` over the rectangle corner + [0,1]u + [0,1]v, `n × n` cells.
+fn average_over_rectangle(
+    corner: Vec3,
+    u: Vec3,
+    v: Vec3,
+    n: usize,
+    f: impl Fn(Vec3) -> f64,
+) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let (s, t) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+            sum += f(corner + u * s + v * t);
+        }
+    }
+    sum / (n * n) as f64
+}
+
+/// Checks a midpoint-rule area average against a closed form. The midpoint rule converges as
+/// O(1/n²) for these integrands (smooth inside the receiver, mild corner singularities at
+/// shared edges), so the n-grid's error is about (F_n − F_2n)·4/3 and the 2n-grid's about a
+/// third of |F_n − F_2n|: the 2n value must lie within |F_n − F_2n| of the closed form (a
+/// factor 3 of margin) plus f32 rounding, and the errors must shrink with n.
+fn check_convergence(coarse: f64, fine: f64, want: f64, what: &str) {
+    let step = (coarse - fine).abs();
+    let err_fine = (fine - want).abs();
+    let err_coarse = (coarse - want).abs();
+    assert!(
+        err_fine <= step + F32_REL * want,
+        "{what}: fine grid error {err_fine:.3e} > step {step:.3e}"
+    );
+    assert!(
+        err_fine <= err_coarse + F32_REL * want,
+        "{what}: error grew with n ({err_coarse:.3e} → {err_fine:.3e})"
+    );
+}
+
+#[test]
+fn parallel_rectangles_match_howell_c11() {
+    for (a, b, c) in [
+        (1.0f32, 1.0f32, 1.0f32),
+        (1.0, 1.5, 0.5),
+        (2.0, 0.5, 0.25),
+        (0.5, 0.5, 2.0),
+    ] {
+        let emitter = quad(Vec3::new(0.0, 0.0, c), Vec3::X * a, Vec3::Y * b);
+        let point = |x: Vec3| ptp(x, Vec3::Z, &emitter);
+        let avg = |n| average_over_rectangle(Vec3::ZERO, Vec3::X * a, Vec3::Y * b, n, point);
+        let want = howell_c11(a as f64, b as f64, c as f64);
+        check_convergence(avg(32), avg(64), want, &format!("C-11 a={a} b={b} c={c}"));
+    }
+}
+
+#[test]
+fn perpendicular_rectangles_match_howell_c14() {
+    for (l, w, h) in [(1.0f32, 1.0f32, 1.0f32), (1.0, 0.5, 2.0), (2.0, 1.0, 0.3)] {
+        // A₁ in z = 0 (normal +z), A₂ in y = 0 (normal +y), common edge along x.
+        let emitter = quad(Vec3::ZERO, Vec3::X * l, Vec3::Z * h);
+        let point = |x: Vec3| ptp(x, Vec3::Z, &emitter);
+        let avg = |n| average_over_rectangle(Vec3::ZERO, Vec3::X * l, Vec3::Y * w, n, point);
+        let want = howell_c14(l as f64, w as f64, h as f64);
+        check_convergence(avg(32), avg(64), want, &format!("C-14 l={l} w={w} h={h}"));
+    }
+}
+
+#[test]
+fn coaxial_discs_match_howell_c41() {
+    // Receiver: the exact disc r₁, integrated over its radius by the midpoint rule with
+    // weight 2ρ/r₁² (the true disc is symmetric, so one radial line suffices: along it the
+    // polygon bracket below holds point by point). Emitter: inscribed and circumscribed
+    // 256-gons, which bracket the disc's value as in `point_to_coaxial_disc_...`.
+    let sides = 256;
+    let half = PI / sides as f64;
+    for (r1, r2, h) in [
+        (1.0, 1.0, 1.0),
+        (0.5, 1.0, 1.0),
+        (1.0, 0.5, 0.2),
+        (2.0, 1.0, 3.0),
+    ] {
+        let centre = Vec3::new(0.0, 0.0, h as f32);
+        let average = |radius: f64, n: usize| {
+            (0..n)
+                .map(|k| {
+                    let rho = r1 * (k as f64 + 0.5) / n as f64;
+                    let f = ptp_ngon(
+                        Vec3::new(rho as f32, 0.0, 0.0),
+                        Vec3::Z,
+                        centre,
+                        radius,
+                        sides,
+                    );
+                    f * 2.0 * rho / (r1 * r1) * (r1 / n as f64)
+                })
+                .sum::<f64>()
+        };
+        let want = howell_c41(r1, r2, h);
+        let (inner, inner_fine) = (average(r2, 64), average(r2, 128));
+        let (outer, outer_fine) = (average(r2 / half.cos(), 64), average(r2 / half.cos(), 128));
+        let quad_err = (inner - inner_fine).abs().max((outer - outer_fine).abs()) + F32_REL * want;
+        assert!(
+            inner_fine - quad_err <= want && want <= outer_fine + quad_err,
+            "C-41 r1={r1} r2={r2} h={h}: {inner_fine} ≤ {want} ≤ {outer_fine} (± {quad_err:.1e}) fails"
+        );
+        // The bracket is tight: polygons within ~2e-4 relative of the disc (see above).
+        assert!(
+            outer_fine - inner_fine <= 1e-3 * want,
+            "C-41 bracket too wide: {inner_fine} .. {outer_fine}"
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Conservation laws of the discrete system
+// ---------------------------------------------------------------------------------------
+
+fn prepared(scene: &Scene, max_elements: usize) -> Prepared {
+    Prepared::new(
+        scene,
+        &MeshSettings {
+            max_elements: Some(max_elements),
+            ..Default::default()
+        },
+    )
+}
+
+/// Patch-to-patch form factor from the element-to-patch estimator: the area average of the
+/// element rows, F_pq = Σ_{i∈p} A_i F_iq / A_p; `None` if any element–patch pair is partly
+/// occluded (its shadow-ray fraction is not 1), so that only collocation error remains.
+/// Also returns the same average over the elements' four midpoint children (unoccluded,
+/// analytic), which converges four times faster: the pair estimates the collocation error.
+fn patch_form_factor(mesh: &Mesh, bvh: &Bvh, p: usize, q: usize) -> Option<(f64, f64)> {
+    let settings = FormFactorSettings::default();
+    let target = &mesh.patches[q];
+    let (mut coarse, mut fine) = (0.0, 0.0);
+    for i in mesh.patches[p].elements.clone() {
+        let e = &mesh.elements[i as usize];
+        let (f, _) = element_to_patch(mesh, bvh, i as usize, q, &settings);
+        let exact = ptp(e.centroid(), e.normal, &target.verts);
+        // Any blocked shadow ray changes the value by ≥ 1/16 relative; 1e-6 is rounding.
+        if (f as f64 - exact).abs() > 1e-6 * exact || f <= 0.0 {
+            return None;
+        }
+        coarse += e.area as f64 * f as f64;
+        for child in subdivide(&e.verts) {
+            let c = (child[0] + child[1] + child[2]) / 3.0;
+            fine += e.area as f64 / 4.0 * ptp(c, e.normal, &target.verts);
+        }
+    }
+    let area = mesh.patches[p].area as f64;
+    Some((coarse / area, fine / area))
+}
+
+#[test]
+fn element_to_patch_is_reciprocal_on_the_cornell_box() {
+    // A_p F_pq = A_q F_qp holds for the exact area-to-area form factors. Our F_pq averages
+    // exact point values at element centroids (one-point rule per element), so each side
+    // carries a collocation error; by Richardson extrapolation from the children's average
+    // (error ¼ as large for the O(h²) centroid rule) that error is ≈ (4/3)|coarse − fine|.
+    // Reciprocity must hold to the sum of both sides' estimated errors, with a factor 2 for
+    // the estimate's own error (higher-order terms near the shared edges of adjacent walls),
+    // plus f32 rounding.
+    let prepared = prepared(&builtin::cornell_box(), 1500);
+    let (mesh, bvh) = (&*prepared.mesh, &*prepared.bvh);
+    let (mut checked, mut separated) = (0, 0);
+    let mut worst: f64 = 0.0;
+    for p in 0..mesh.patches.len() {
+        for q in p + 1..mesh.patches.len() {
+            let (Some((fpq, fpq_fine)), Some((fqp, fqp_fine))) = (
+                patch_form_factor(mesh, bvh, p, q),
+                patch_form_factor(mesh, bvh, q, p),
+            ) else {
+                continue;
+            };
+            let straddles = |a: usize, b: usize| {
+                let (pa, pb) = (&mesh.patches[a], &mesh.patches[b]);
+                let side = pb.verts.map(|v| pa.normal.dot(v - pa.verts[0]));
+                side.iter().any(|s| *s < -1e-6) && side.iter().any(|s| *s > 1e-6)
+            };
+            if straddles(p, q) || straddles(q, p) {
+                continue;
+            }
+            let (ap, aq) = (mesh.patches[p].area as f64, mesh.patches[q].area as f64);
+            let (left, right) = (ap * fpq, aq * fqp);
+            let collocation =
+                4.0 / 3.0 * (ap * (fpq - fpq_fine).abs() + aq * (fqp - fqp_fine).abs());
+            let bound = 2.0 * collocation + F32_REL * (left + right);
+            // Near a shared or close edge the kernel is singular and the one-point rule's
+            // error is not O(h²), so the Richardson estimate is not a bound there: check
+            // the bound only for separated pairs (closest vertices at least one patch
+            // diameter apart), and for all pairs that refinement does not make it worse
+            // (beyond 1e-4 relative: the children's values carry their own rounding and
+            // the coarse gap can be zero by chance).
+            let diam = |k: usize| {
+                let v = mesh.patches[k].verts;
+                (v[0] - v[1])
+                    .length()
+                    .max((v[1] - v[2]).length())
+                    .max((v[2] - v[0]).length()) as f64
+            };
+            let mut gap_min = f64::INFINITY;
+            for a in mesh.patches[p].verts {
+                for b in mesh.patches[q].verts {
+                    gap_min = gap_min.min((a - b).length() as f64);
+                }
+            }
+            let fine_gap = (ap * fpq_fine - aq * fqp_fine).abs();
+            if gap_min >= diam(p).max(diam(q)) {
+                assert!(
+                    (left - right).abs() <= bound,
+                    "patches {p}, {q}: A_p F_pq = {left:.6e}, A_q F_qp = {right:.6e}, collocation bound {bound:.2e}"
+                );
+                separated += 1;
+            } else {
+                assert!(
+                    fine_gap <= (left - right).abs() * 1.05 + 1e-4 * (left + right),
+                    "patches {p}, {q}: refinement widened the gap: {} → {fine_gap}",
+                    (left - right).abs()
+                );
+            }
+            worst = worst.max((left - right).abs() / left.max(right));
+            checked += 1;
+        }
+    }
+    eprintln!(
+        "reciprocity: {checked} unoccluded pairs ({separated} separated), worst relative gap {worst:.3e}"
+    );
+    assert!(
+        checked > 1000 && separated > 300,
+        "too few unoccluded pairs checked: {checked}"
+    );
+}
+
+#[test]
+fn element_to_patch_rows_sum_to_one_in_the_furnace_box() {
+    // Closed convex enclosure: every direction above an element meets exactly one patch, no
+    // occlusion, so Σ_p F_ip = 1 with exact point values. What remains is f32 rounding of
+    // each value (6e-8 relative, summed: ≤ 6e-8) and of the mesh vertices (patch edges meet
+    // to an ulp, 1e-7 of the box), far inside 1e-5.
+    let scene = builtin::furnace_box(
+        DVec3::new(3.0, -2.0, 1.0),
+        DVec3::new(1.0, 2.0, 0.5),
+        0.5,
+        1.0,
+    );
+    let prepared = prepared(&scene, 600);
+    let (mesh, bvh) = (&*prepared.mesh, &*prepared.bvh);
+    let settings = FormFactorSettings::default();
+    for i in 0..mesh.elements.len() {
+        let sum: f64 = (0..mesh.patches.len())
+            .map(|p| element_to_patch(mesh, bvh, i, p, &settings).0 as f64)
+            .sum();
+        assert!((sum - 1.0).abs() <= 1e-5, "element {i}: Σ_p F_ip = {sum}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The hemicube against the analytic estimator
+// ---------------------------------------------------------------------------------------
+
+fn row_sum(row: &[(u32, f32)]) -> f64 {
+    row.iter().map(|(_, f)| *f as f64).sum()
+}
+
+#[test]
+fn hemicube_rows_sum_to_one_in_the_furnace_box() {
+    // In a closed box every hemicube pixel shows some patch, so a row sums to the sum of the
+    // delta form factors, whose midpoint-rule error is ≈ 0.54/res² (+1.3e-4 at 64, +8.3e-6
+    // at 256); pixels lost to edge rounding or the near plane would show as a deficit. Bound:
+    // 1/res² for every element, and the worst error must shrink from 64 to 256.
+    let scene = builtin::furnace_box(DVec3::ZERO, DVec3::new(1.0, 0.7, 1.3), 0.5, 1.0);
+    let prepared = prepared(&scene, 200);
+    let mesh = &*prepared.mesh;
+    let mut worst = Vec::new();
+    for res in [64u32, 256] {
+        let mut cube = Hemicube::new(res);
+        let mut w: f64 = 0.0;
+        // Every element at 64, every third at 256 (the test's time budget).
+        let stride = if res == 64 { 1 } else { 3 };
+        for i in (0..mesh.elements.len()).step_by(stride) {
+            let err = row_sum(&cube.row(mesh, i)) - 1.0;
+            assert!(
+                err.abs() <= 1.0 / (res as f64).powi(2),
+                "res {res}, element {i}: row sum − 1 = {err:.3e}"
+            );
+            w = w.max(err.abs());
+        }
+        eprintln!("hemicube {res}: worst |Σ F − 1| over the furnace box = {w:.3e}");
+        worst.push(w);
+    }
+    assert!(
+        worst[1] < worst[0] / 4.0,
+        "hemicube error did not shrink with resolution: {worst:?}"
+    );
+}
+
+/// Index of the Cornell box's surface (a quad = two consecutive scene triangles) of a patch:
+/// 0 floor, 1 ceiling, 2 back, 3 green, 4 red, 5 light, then the blocks' faces.
+fn surface(mesh: &Mesh, patch: u32) -> usize {
+    mesh.patches[patch as usize].scene_triangle as usize / 2
+}
+
+fn per_surface(mesh: &Mesh, row: impl Iterator<Item = (u32, f64)>) -> Vec<f64> {
+    let mut out = vec![0.0; mesh.triangles.len().div_ceil(2)];
+    for (p, f) in row {
+        out[surface(mesh, p)] += f;
+    }
+    out
+}
+
+/// Reference row F_ip for element `element`'s centroid x: each patch cut into 4⁵ = 1024
+/// midpoint sub-triangles, each contributing its exact point-to-polygon value times the
+/// visibility of its centroid (one shadow ray). Exact where unoccluded; under partial
+/// occlusion, visibility is weighted by the form-factor kernel (as the definition of F
+/// requires), and only the sub-triangles cut by a shadow edge are misjudged: shadow edges
+/// resolved to 1/32 of a patch, a few 1e-3 of a partly hidden surface's F (checked against
+/// 4⁶ sub-triangles and a 1024² hemicube while writing this test: within 0.2 %).
+fn reference_row(mesh: &Mesh, bvh: &Bvh, element: usize) -> Vec<f64> {
+    let e = &mesh.elements[element];
+    let x = e.centroid();
+    let eps = mesh.epsilon();
+    let from = x + e.normal * eps;
+    let own = mesh.patches[e.patch as usize].scene_triangle;
+    (0..mesh.patches.len())
+        .map(|p| {
+            let patch = &mesh.patches[p];
+            if p == e.patch as usize || patch.normal.dot(x - patch.verts[0]) <= 0.0 {
+                return 0.0;
+            }
+            let skip = [own, patch.scene_triangle];
+            let mut pieces = vec![patch.verts];
+            for _ in 0..5 {
+                pieces = pieces.iter().flat_map(subdivide).collect();
+            }
+            pieces
+                .iter()
+                .map(|t| {
+                    let c = (t[0] + t[1] + t[2]) / 3.0 + patch.normal * eps;
+                    ptp(x, e.normal, t) * bvh.transmittance(from, c, skip) as f64
+                })
+                .sum()
+        })
+        .collect()
+}
+
+#[test]
+fn hemicube_and_ray_cast_agree_with_a_reference_on_the_cornell_box() {
+    let prepared = prepared(&builtin::cornell_box(), 400);
+    let (mesh, bvh) = (&*prepared.mesh, &*prepared.bvh);
+    let settings = FormFactorSettings::default();
+    let mut worst = [0.0f64; 3];
+    let mut compared = 0;
+    for i in (0..mesh.elements.len()).step_by(9) {
+        let reference = per_surface(
+            mesh,
+            reference_row(mesh, bvh, i)
+                .into_iter()
+                .enumerate()
+                .map(|(p, f)| (p as u32, f)),
+        );
+        let h64 = per_surface(
+            mesh,
+            hemicube_row(mesh, i, 64)
+                .into_iter()
+                .map(|(p, f)| (p, f as f64)),
+        );
+        let h256 = per_surface(
+            mesh,
+            hemicube_row(mesh, i, 256)
+                .into_iter()
+                .map(|(p, f)| (p, f as f64)),
+        );
+        let ray = per_surface(
+            mesh,
+            (0..mesh.patches.len()).map(|p| {
+                (
+                    p as u32,
+                    element_to_patch(mesh, bvh, i, p, &settings).0 as f64,
+                )
+            }),
+        );
+        for s in 0..reference.len() {
+            let r = reference[s];
+            if r < 0.02 {
+                continue;
+            }
+            compared += 1;
+            for (k, v) in [h64[s], h256[s], ray[s]].into_iter().enumerate() {
+                let err = (v - r).abs() / r;
+                worst[k] = worst[k].max(err);
+            }
+        }
+    }
+    eprintln!(
+        "{compared} surface sums; worst relative error: hemicube 64 {:.3e}, 256 {:.3e}, ray-cast {:.3e}",
+        worst[0], worst[1], worst[2]
+    );
+    assert!(compared > 100, "{compared}");
+    // Per-surface sums (≥ 0.02) against the reference: the hemicube's error is pixel
+    // aliasing of the surface outlines, ∝ 1/resolution (measured 5.4 % at 64, 2.0 % at
+    // 256: bounds at twice that); the ray-cast estimate is exact where unoccluded and its
+    // visibility error is that of the strata cut by a shadow edge (measured 5.3 %).
+    assert!(worst[0] < 0.1, "hemicube 64: {}", worst[0]);
+    assert!(worst[1] < 0.04, "hemicube 256: {}", worst[1]);
+    assert!(worst[2] < 0.1, "ray-cast: {}", worst[2]);
+    // Resolution must help: the finer hemicube is closer.
+    assert!(worst[1] < worst[0]);
+}
+
+/// A floor (1 × 1 at y = 0, facing up), a small emitter (0.2 × 0.2 at y = 1, facing down)
+/// and between them a single-sided blocker (0.4 × 0.4 at y = 0.5) facing *up*: the floor
+/// sees only its back, which is no patch but must still block.
+fn blocker_scene() -> Scene {
+    let square = |centre: [f64; 3], half: f32, up: bool| {
+        let c = Vec3::new(centre[0] as f32, centre[1] as f32, centre[2] as f32);
+        let (a, b) = (Vec3::X * half, Vec3::Z * half);
+        let positions = vec![c - a - b, c + a - b, c + a + b, c - a + b];
+        // (−a−b, +a−b, +a+b) winds counter-clockwise seen from below (normal −y).
+        let triangles = if up {
+            vec![[0, 2, 1], [0, 3, 2]]
+        } else {
+            vec![[0, 1, 2], [0, 2, 3]]
+        };
+        (positions, triangles)
+    };
+    let mut objects = Vec::new();
+    for (name, centre, half, up, material) in [
+        ("floor", [0.0, 0.0, 0.0], 0.5, true, 0u32),
+        ("lamp", [0.0, 1.0, 0.0], 0.1, false, 1),
+        ("blocker", [0.0, 0.5, 0.0], 0.2, true, 0),
+    ] {
+        let (positions, triangles) = square(centre, half, up);
+        objects.push(Object {
+            name: name.into(),
+            positions,
+            triangle_material: vec![material; triangles.len()],
+            triangles,
+            ..Default::default()
+        });
+    }
+    Scene {
+        name: "blocker".into(),
+        objects,
+        materials: vec![
+            Material::diffuse("white", Vec3::splat(0.5)),
+            Material::emitter("lamp", Vec3::ZERO, Vec3::ONE),
+        ],
+        ..Default::default()
+    }
+}
+
+#[test]
+fn hemicube_blocks_with_back_faces_of_single_sided_surfaces() {
+    let prepared = prepared(&blocker_scene(), 400);
+    let (mesh, bvh) = (&*prepared.mesh, &*prepared.bvh);
+    // Orientation sanity: floor and blocker face up, the lamp down.
+    for p in &mesh.patches {
+        let want = if p.object == 1 { -1.0 } else { 1.0 };
+        assert!(
+            (p.normal.y - want).abs() < 1e-6,
+            "patch of object {} has normal {}",
+            p.object,
+            p.normal
+        );
+    }
+    let settings = FormFactorSettings {
+        max_rays: 64,
+        min_rays: 16,
+        penumbra_rays: 256,
+    };
+    let lamp = |row: &[(u32, f32)]| -> f64 {
+        row.iter()
+            .filter(|(p, _)| mesh.patches[*p as usize].object == 1)
+            .map(|(_, f)| *f as f64)
+            .sum()
+    };
+    let mut umbra = 0;
+    let (mut hemi_err, mut ray_err) = (Vec::new(), Vec::new());
+    for (i, e) in mesh.elements.iter().enumerate() {
+        if mesh.patches[e.patch as usize].object != 0 {
+            continue;
+        }
+        let row = hemicube_row(mesh, i, 256);
+        // The blocker faces away from the floor: it shoots nothing there.
+        assert!(
+            row.iter()
+                .all(|(p, _)| mesh.patches[*p as usize].object != 2),
+            "element {i} sees the blocker's front"
+        );
+        let hemi = lamp(&row);
+        let ray: f64 = (0..mesh.patches.len())
+            .filter(|&p| mesh.patches[p].object == 1)
+            .map(|p| element_to_patch(mesh, bvh, i, p, &settings).0 as f64)
+            .sum();
+        let c = e.centroid();
+        // Umbra: every segment from the centroid to the lamp (|x|, |z| ≤ 0.1 at y = 1)
+        // crosses y = 0.5 within the blocker (|x|, |z| ≤ 0.2) when |x_c|, |z_c| < 0.3.
+        if c.x.abs() < 0.29 && c.z.abs() < 0.29 {
+            assert_eq!(
+                hemi, 0.0,
+                "element {i} at {c} is in the umbra but the hemicube sees the lamp"
+            );
+            assert_eq!(
+                ray, 0.0,
+                "element {i} at {c} is in the umbra but shadow rays reach the lamp"
+            );
+            umbra += 1;
+        } else {
+            // Penumbra and lit: against the dense kernel-weighted reference.
+            let reference: f64 = reference_row(mesh, bvh, i)
+                .into_iter()
+                .enumerate()
+                .filter(|(p, _)| mesh.patches[*p].object == 1)
+                .map(|(_, f)| f)
+                .sum();
+            let free = (0..mesh.patches.len())
+                .filter(|&p| mesh.patches[p].object == 1)
+                .map(|p| ptp(c, e.normal, &mesh.patches[p].verts))
+                .sum::<f64>();
+            hemi_err.push((hemi - reference) / free);
+            ray_err.push((ray - reference) / free);
+        }
+    }
+    let stats = |v: &[f64]| {
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let rms = (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let worst = v.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        (mean, rms, worst)
+    };
+    eprintln!("hemicube (mean, rms, worst) / free: {:?}", stats(&hemi_err));
+    eprintln!("ray-cast (mean, rms, worst) / free: {:?}", stats(&ray_err));
+    // Tolerances, as fractions of the unoccluded value: the ray-cast estimate misjudges
+    // only the strata cut by the shadow edge (about 2k of k² = 256 here, each counted whole
+    // or not at all: a few percent), the hemicube only the pixels on it (a 256² cube puts
+    // the lamp on ~25² pixels: a few percent). Neither may be biased beyond 1 %.
+    // Measured: hemicube (−0.4 %, 1.5 %, 3.2 %), ray-cast (+0.4 %, 1.0 %, 6.9 %).
+    for (what, err) in [("hemicube", &hemi_err), ("ray-cast", &ray_err)] {
+        let (mean, rms, worst) = stats(err);
+        assert!(
+            mean.abs() < 0.01 && rms < 0.025 && worst < 0.1,
+            "{what}: mean {mean}, rms {rms}, worst {worst}"
+        );
+    }
+    assert!(umbra > 10, "too few umbra elements: {umbra}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Bounded behaviour at contact
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn form_factors_stay_bounded_at_contact() {
+    // A point 1e-9 from a triangle (above its interior, facing it; beside an edge; at a
+    // vertex): the exact value tends to 1, ½ or a wedge fraction, never beyond 1.
+    let tri = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(2.0, -1.0, 0.0),
+        Vec3::new(-1.0, 2.0, 0.0),
+    ];
+    let cases = [
+        (Vec3::new(0.0, 0.0, -1e-9), Vec3::Z, 0.999, 1.0),
+        (Vec3::new(0.0, -1.0 - 1e-9, 1e-9), Vec3::Y, 0.0, 0.5),
+        (Vec3::new(-1.0, -1.0, -1e-9), Vec3::Z, 0.0, 1.0),
+        (tri[0], Vec3::Z, 0.0, 1.0),
+        ((tri[0] + tri[1]) * 0.5, Vec3::Y, 0.0, 1.0),
+    ];
+    for (p, n, lo, hi) in cases {
+        let f = ptp(p, n, &tri);
+        assert!(
+            f.is_finite() && f >= lo && f <= hi,
+            "point {p} normal {n}: F = {f}"
+        );
+    }
+    // The Cornell box's blocks stand on the floor: their side elements touch floor patches
+    // along an edge, and floor elements touch the block faces. Every pair, both estimators:
+    // finite and in [0, 1], and a row never exceeds 1 (plus the hemicube's table excess).
+    let prepared = prepared(&builtin::cornell_box(), 300);
+    let (mesh, bvh) = (&*prepared.mesh, &*prepared.bvh);
+    let settings = FormFactorSettings::default();
+    // Elements with a corner on the floor line: the floor itself, the bottom rows of the
+    // walls and of the blocks' sides.
+    let floor_y = -mesh.origin.y as f32;
+    let on_floor = |i: &usize| {
+        mesh.elements[*i]
+            .verts
+            .iter()
+            .any(|v| (v.y - floor_y).abs() < 1e-4)
+    };
+    let mut checked = 0;
+    for i in (0..mesh.elements.len()).filter(on_floor) {
+        let row: Vec<f64> = (0..mesh.patches.len())
+            .map(|p| element_to_patch(mesh, bvh, i, p, &settings).0 as f64)
+            .collect();
+        assert!(
+            row.iter().all(|f| f.is_finite() && (0.0..=1.0).contains(f)),
+            "element {i}: {row:?}"
+        );
+        // The exact row sums to ≤ 1 (a closed box: = 1). Visibility is sampled per stratum,
+        // and a stratum cut by a shadow edge counts whole or not at all, so the estimate
+        // can exceed 1 by the form factor of the cut strata (one row of a 16-stratum first
+        // pass at a contact, 64 in penumbra: about 1 %; measured up to 0.7 %).
+        assert!(
+            row.iter().sum::<f64>() <= 1.02,
+            "element {i}: row sum {}",
+            row.iter().sum::<f64>()
+        );
+        let hemi = hemicube_row(mesh, i, 64);
+        assert!(
+            hemi.iter()
+                .all(|(_, f)| f.is_finite() && (0.0..=1.0).contains(f)),
+            "element {i}: {hemi:?}"
+        );
+        assert!(
+            row_sum(&hemi) <= 1.0 + 1.0 / 64f64.powi(2),
+            "element {i}: hemicube row sum {}",
+            row_sum(&hemi)
+        );
+        checked += 1;
+    }
+    assert!(checked > 20, "{checked}");
+}
