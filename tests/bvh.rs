@@ -30,9 +30,9 @@ enum Crossing {
 
 /// Whether the segment `a + t (b − a)`, `t ∈ (lo, hi)`, crosses triangle `t` (either side),
 /// by signed volumes: the line crosses the triangle iff the three edge volumes share a
-/// sign; the parameter is from the plane equation. Near-zero volumes or parameters within
-/// `margin` of the bounds are ties.
-fn crossing(a: DVec3, b: DVec3, t: &[DVec3; 3], lo: f64, hi: f64) -> Crossing {
+/// sign; the parameter is from the plane equation. Lines passing within `tie` (a length)
+/// of an edge, or parameters within 1e-3 of the bounds, are ties.
+fn crossing(a: DVec3, b: DVec3, t: &[DVec3; 3], lo: f64, hi: f64, tie: f64) -> Crossing {
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let dir = b - a;
     let scale = (t[1] - t[0])
@@ -58,10 +58,14 @@ fn crossing(a: DVec3, b: DVec3, t: &[DVec3; 3], lo: f64, hi: f64) -> Crossing {
     let margin = 1e-3;
     // Edge volumes: sign of (dir × (v_j − a)) · (v_k − a) style triple products.
     let vol = |p: DVec3, q: DVec3| dir.cross(p - a).dot(q - a);
-    let w = [vol(t[0], t[1]), vol(t[1], t[2]), vol(t[2], t[0])];
-    let wsum: f64 = w.iter().map(|x| x.abs()).sum();
+    let edges = [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])];
+    let w = edges.map(|(p, q)| vol(p, q));
     let inside = (w.iter().all(|&x| x > 0.0) || w.iter().all(|&x| x < 0.0)) as i32;
-    let near_edge = w.iter().any(|&x| x.abs() < margin * wsum);
+    // Distance between the segment's line and each edge's line: |w| / |dir × edge|.
+    let near_edge = edges
+        .iter()
+        .zip(w)
+        .any(|((p, q), w)| w.abs() <= tie * dir.cross(*q - *p).length());
     let near_end = (s - lo).abs() < margin || (s - hi).abs() < margin;
     if near_edge || near_end {
         return Crossing::Tie;
@@ -137,6 +141,8 @@ proptest! {
         let bvh = Bvh::build(&tris, &transmittance);
         prop_assert!(bvh.validate().is_ok(), "{:?}", bvh.validate());
         let off = DVec3::from(offset) * scale * 10.0;
+        // f32 rounding of coordinates up to ~11·scale is ~1e-6·scale; ties within 1e-5·scale.
+        let tie_len = 1e-5 * scale;
         let dtris: Vec<[DVec3; 3]> = tris.iter().map(d).collect();
         let (mut compared, mut ties) = (0, 0);
         for (a, b) in segs {
@@ -153,12 +159,12 @@ proptest! {
             let mut nearest: Option<(f64, usize)> = None;
             let mut ray_tie = false;
             for (i, t) in dtris.iter().enumerate() {
-                match crossing(ad, bd, t, 1e-4, 1.0 - 1e-4) {
+                match crossing(ad, bd, t, 1e-4, 1.0 - 1e-4, tie_len) {
                     Crossing::Yes(_) => want *= transmittance[i] as f64,
                     Crossing::Tie => tie = true,
                     Crossing::No => {}
                 }
-                match crossing(ad, bd, t, 0.01, 0.99) {
+                match crossing(ad, bd, t, 0.01, 0.99, tie_len) {
                     Crossing::Yes(s) => {
                         if let Some((s0, _)) = nearest
                             && (s - s0).abs() < 1e-3
@@ -183,6 +189,11 @@ proptest! {
                     "segment {a} → {b}: transmittance {got}, brute force {want}"
                 );
                 prop_assert_eq!(bvh.occluded(a, b), want < 1.0);
+                let own = bvh.transmittance_binary(a, b, [u32::MAX; 2]) as f64;
+                prop_assert!(
+                    (own - want).abs() < 1e-6,
+                    "segment {a} → {b}: binary-tree transmittance {own}, brute force {want}"
+                );
             }
             if !ray_tie {
                 let hit = bvh.closest_hit(a, b - a, 0.01, 0.99, u32::MAX);
@@ -205,6 +216,94 @@ proptest! {
         let total = compared + ties;
         prop_assert!(total < 20 || ties * 2 <= total, "{ties} ties of {total}");
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// A shaft proven clear must be clear: no segment from the apex to any point of the
+    /// base may cross a triangle (brute force over 64 base points, f64, ties excluded).
+    #[test]
+    fn a_clear_shaft_has_no_blocked_segment(
+        (tris, scale, offset) in soup(),
+        shafts in prop::collection::vec(
+            (prop::array::uniform3(-1.5f64..1.5), prop::array::uniform3(prop::array::uniform3(-1.5f64..1.5))),
+            20,
+        ),
+    ) {
+        let bvh = Bvh::build(&tris, &[]);
+        let off = DVec3::from(offset) * scale * 10.0;
+        // f32 rounding of coordinates up to ~11·scale is ~1e-6·scale; ties within 1e-5·scale.
+        let tie_len = 1e-5 * scale;
+        let dtris: Vec<[DVec3; 3]> = tris.iter().map(d).collect();
+        let place = |p: [f64; 3]| (DVec3::from(p) * scale + off).as_vec3();
+        for (apex, base) in shafts {
+            let apex = place(apex);
+            let base = base.map(place);
+            if !bvh.shaft_clear(apex, &base, [u32::MAX; 2], 1e-6 * scale as f32) {
+                continue;
+            }
+            let db = d(&base);
+            for i in 0..8 {
+                for j in 0..8 - i {
+                    let (u, v) = ((i as f64 + 0.25) / 8.0, (j as f64 + 0.25) / 8.0);
+                    let y = db[0] + (db[1] - db[0]) * u + (db[2] - db[0]) * v;
+                    for t in &dtris {
+                        prop_assert!(
+                            !matches!(crossing(apex.as_dvec3(), y, t, 1e-4, 1.0 - 1e-4, tie_len), Crossing::Yes(_)),
+                            "shaft {apex} → {base:?} declared clear, but {y} is hidden by {t:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// In an empty room (a floor and the wall facing the apex) the shaft from a point above
+/// the floor to a wall triangle is clear; a box between them is found.
+#[test]
+fn shafts_are_cleared_past_coplanar_neighbours_and_blocked_by_boxes() {
+    // Floor: two triangles in y = 0; the receiver sits above the first at (0.25, ε, 0.25).
+    let floor = [
+        [
+            Vec3::ZERO,
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 0.0),
+        ],
+        [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ],
+    ];
+    // Wall: x = 1 plane, the target triangle and its neighbour.
+    let wall = [
+        [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ],
+        [
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ],
+    ];
+    let mut tris: Vec<[Vec3; 3]> = floor.into_iter().chain(wall).collect();
+    let eps = 1e-5;
+    let apex = Vec3::new(0.25, eps, 0.25);
+    let base = wall[0].map(|v| v - Vec3::X * eps);
+    let bvh = Bvh::build(&tris, &[]);
+    assert!(bvh.shaft_clear(apex, &base, [0, 2], eps * 0.1));
+    // A small blocker in the middle of the shaft.
+    let c = (apex + (base[0] + base[1] + base[2]) / 3.0) * 0.5;
+    tris.push([c - Vec3::Y * 0.05, c + Vec3::Z * 0.05, c + Vec3::Y * 0.05]);
+    let bvh = Bvh::build(&tris, &[]);
+    assert!(!bvh.shaft_clear(apex, &base, [0, 2], eps * 0.1));
+    // Transparent triangles do not count.
+    let bvh = Bvh::build(&tris, &[0.0, 0.0, 0.0, 0.0, 1.0]);
+    assert!(bvh.shaft_clear(apex, &base, [0, 2], eps * 0.1));
 }
 
 /// Thousands of triangles with one shared centroid (a fan of slivers through a point): the

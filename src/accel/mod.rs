@@ -12,3 +12,46 @@
 mod bvh;
 
 pub use bvh::{Bvh, Hit};
+
+/// `n` segments between pairs of points drawn uniformly by area over `triangles` (a fixed
+/// hash sequence, so every run and every ray engine sees the same segments), each with the
+/// indices of its two end triangles. `None` when the triangles have no area.
+///
+/// This is the distribution of `radiosity bench --occlusion`.
+pub fn sample_segments(triangles: &[[glam::Vec3; 3]], n: usize) -> Option<Vec<Segment>> {
+    use crate::solver::form_factor::{hash, unit};
+    let mut cdf = Vec::with_capacity(triangles.len());
+    let mut total = 0.0f64;
+    for t in triangles {
+        let a = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64;
+        total += if a.is_finite() { a } else { 0.0 };
+        cdf.push(total);
+    }
+    if total.is_nan() || total <= 0.0 {
+        return None;
+    }
+    let sample = |k: u64| {
+        let h = hash(k);
+        let x = unit(h) as f64 * total;
+        let i = cdf.partition_point(|c| *c < x).min(cdf.len() - 1);
+        let t = &triangles[i];
+        let (mut u, mut v) = (unit(hash(h ^ 1)), unit(hash(h ^ 2)));
+        if u + v > 1.0 {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        (t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v, i as u32)
+    };
+    Some(
+        (0..n as u64)
+            .map(|k| {
+                let (a, ta) = sample(2 * k);
+                let (b, tb) = sample(2 * k + 1);
+                (a, b, [ta, tb])
+            })
+            .collect(),
+    )
+}
+
+/// A segment's two end points and the triangles they lie on.
+pub type Segment = (glam::Vec3, glam::Vec3, [u32; 2]);

@@ -6,7 +6,6 @@ use crate::export::write_atomic;
 use crate::mesh::Reconstruction;
 use crate::pipeline::Prepared;
 use crate::scene::Scene;
-use crate::solver::form_factor::{hash, unit};
 use crate::solver::{MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, SolverSettings, StepOutcome};
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
@@ -347,34 +346,8 @@ pub fn occlusion(scene: &Scene, segments: usize) -> Result<()> {
     let setup = t.elapsed().as_secs_f64();
     let mesh = &prepared.mesh;
     let bvh = &prepared.bvh;
-    // Cumulative area over triangles for sampling by area.
-    let mut cdf = Vec::with_capacity(mesh.triangles.len());
-    let mut total = 0.0f64;
-    for t in &mesh.triangles {
-        let a = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64;
-        total += if a.is_finite() { a } else { 0.0 };
-        cdf.push(total);
-    }
-    anyhow::ensure!(total > 0.0, "{}: the scene has no surface area", scene.name);
-    let sample = |k: u64| -> (Vec3, u32) {
-        let h = hash(k);
-        let x = unit(h) as f64 * total;
-        let i = cdf.partition_point(|c| *c < x).min(cdf.len() - 1);
-        let t = &mesh.triangles[i];
-        let (mut u, mut v) = (unit(hash(h ^ 1)), unit(hash(h ^ 2)));
-        if u + v > 1.0 {
-            u = 1.0 - u;
-            v = 1.0 - v;
-        }
-        (t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v, i as u32)
-    };
-    let pairs: Vec<(Vec3, Vec3, [u32; 2])> = (0..segments as u64)
-        .map(|k| {
-            let (a, ta) = sample(2 * k);
-            let (b, tb) = sample(2 * k + 1);
-            (a, b, [ta, tb])
-        })
-        .collect();
+    let pairs = crate::accel::sample_segments(&mesh.triangles, segments)
+        .ok_or_else(|| anyhow::anyhow!("{}: the scene has no surface area", scene.name))?;
     let t = Instant::now();
     let blocked_1: usize = pairs
         .iter()
