@@ -179,6 +179,18 @@ impl SolveOptions {
 /// Loads `spec` (a path or `builtin:NAME`), adds the default sky when it has no light, and
 /// prints its warnings unless `quiet`.
 pub fn load_scene(spec: &str, options: &SolveOptions, quiet: bool) -> Result<Scene> {
+    let scene = open_scene(spec, options.sky, options.sun)?;
+    if !quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    Ok(scene)
+}
+
+/// Loads `spec` (a path or `builtin:NAME`) and adds `sky`/`sun` (or the default sky) when
+/// it has no light. Warnings stay in `Scene::warnings`.
+pub fn open_scene(spec: &str, sky: Option<Vec3>, sun: Option<(DVec3, Vec3)>) -> Result<Scene> {
     let mut scene = if let Some(name) = spec.strip_prefix("builtin:") {
         builtin::by_name(name).with_context(|| {
             format!(
@@ -192,12 +204,7 @@ pub fn load_scene(spec: &str, options: &SolveOptions, quiet: bool) -> Result<Sce
     if scene.triangle_count() == 0 {
         bail!("{spec}: the scene has no triangles");
     }
-    scene.ensure_light(options.sky, options.sun);
-    if !quiet {
-        for w in &scene.warnings {
-            eprintln!("warning: {w}");
-        }
-    }
+    scene.ensure_light(sky, sun);
     Ok(scene)
 }
 

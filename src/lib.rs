@@ -2,7 +2,8 @@
 //!
 //! The pipeline (DESIGN.md §1): [`scene`] (CPU truth) → [`mesh`] (patches and elements) →
 //! [`accel`] (BVH, occlusion) → [`solver`] (form factors, methods, `Solver::step`). The core
-//! has no GUI or GPU dependency; `cli` drives it from the command line.
+//! has no GUI or GPU dependency; `cli` drives it from the command line and [`worker`] from
+//! a thread for the viewer.
 
 pub mod accel;
 pub mod cli;
@@ -11,3 +12,4 @@ pub mod mesh;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;
+pub mod worker;

@@ -1,0 +1,206 @@
+//! The solver thread's protocol (DESIGN.md §2), with no GUI: load → snapshots →
+//! converged; the converged snapshot equals a direct `Solver::run` (the worker adds no
+//! error of its own); cancel by opening another scene; stale job ids; errors and bad files
+//! become `Failed` and the worker lives on; pause, resume and settings changes.
+
+use radiosity::mesh::MeshSettings;
+use radiosity::pipeline::Prepared;
+use radiosity::scene::builtin;
+use radiosity::solver::{Method, SolverSettings};
+use radiosity::worker::{Command, Event, Source, Stage, Worker};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+fn mesh() -> MeshSettings {
+    MeshSettings {
+        max_elements: Some(300),
+        ..Default::default()
+    }
+}
+
+fn load(job: u64, source: &str, solver: SolverSettings) -> Command {
+    Command::Load {
+        job,
+        source: Source(source.into()),
+        mesh: mesh(),
+        solver,
+    }
+}
+
+/// Collects events until `stop` says so or 60 s pass (a hang fails the test).
+fn until(worker: &Worker, mut stop: impl FnMut(&Event) -> bool) -> Vec<Event> {
+    let start = Instant::now();
+    let mut seen = Vec::new();
+    while start.elapsed() < Duration::from_secs(60) {
+        if let Some(e) = worker.recv_timeout(Duration::from_millis(100)) {
+            let done = stop(&e);
+            seen.push(e);
+            if done {
+                return seen;
+            }
+        }
+    }
+    panic!("no final event within 60 s; saw {} events", seen.len());
+}
+
+#[test]
+fn a_load_streams_snapshots_and_converges_to_the_direct_answer() {
+    let wakes = Arc::new(AtomicUsize::new(0));
+    let w = Arc::clone(&wakes);
+    let worker = Worker::spawn(move || {
+        w.fetch_add(1, Ordering::Relaxed);
+    });
+    let settings = SolverSettings {
+        tolerance: 1e-4,
+        ..Default::default()
+    };
+    worker.send(load(1, "builtin:cornell", settings.clone()));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let stages: Vec<Stage> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Progress { stage, .. } => Some(*stage),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(stages, [Stage::Loading, Stage::Meshing, Stage::Solving]);
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::Loaded { job: 1, .. }))
+    );
+    let snaps: Vec<(u64, Arc<[glam::Vec3]>)> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Snapshot {
+                version, radiosity, ..
+            } => Some((*version, radiosity.clone())),
+            _ => None,
+        })
+        .collect();
+    assert!(!snaps.is_empty());
+    // Versions increase strictly; the UI keeps the newest.
+    assert!(
+        snaps
+            .windows(2)
+            .all(|w| w[0].1.len() == w[1].1.len() && w[0].0 < w[1].0)
+    );
+    let Some(Event::Converged { job: 1, stats }) = events.last() else {
+        panic!("ended with {:?}", events.last());
+    };
+    assert!(stats.converged);
+    // The worker's final snapshot is exactly what the solver gives on this thread.
+    let prepared = Prepared::new(&builtin::cornell_box(), &mesh());
+    let mut solver = prepared.solver(settings).unwrap();
+    solver
+        .run(None, &std::sync::atomic::AtomicBool::new(false))
+        .unwrap();
+    let want = solver.display_radiosity(true);
+    let got = &snaps.last().unwrap().1;
+    assert_eq!(got.len(), want.len());
+    assert!(
+        got.iter().zip(&want).all(|(a, b)| a == b),
+        "worker and direct run differ"
+    );
+    // Every event woke the UI.
+    assert!(wakes.load(Ordering::Relaxed) >= events.len());
+}
+
+#[test]
+fn opening_another_scene_cancels_the_first_and_its_events_are_stale() {
+    let worker = Worker::spawn(|| {});
+    // A slow solve (tiny tolerance, many elements) that the second load must cut short.
+    let slow = SolverSettings {
+        tolerance: 1e-12,
+        method: Method::Progressive,
+        ..Default::default()
+    };
+    worker.send(load(1, "builtin:cornell", slow));
+    until(&worker, |e| matches!(e, Event::Snapshot { job: 1, .. }));
+    let t = Instant::now();
+    worker.send(load(2, "builtin:furnace-cube", SolverSettings::default()));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { job: 2, .. } | Event::Failed { .. })
+    });
+    assert!(
+        matches!(events.last(), Some(Event::Converged { job: 2, .. })),
+        "{:?}",
+        events.last()
+    );
+    // Job 1 never converged, and after job 2's first event nothing of job 1 arrives: the
+    // UI drops job-1 events by id anyway, but the worker must not keep solving it.
+    assert!(
+        !events
+            .iter()
+            .any(|e| matches!(e, Event::Converged { job: 1, .. }))
+    );
+    let first2 = events.iter().position(|e| e.job() == 2).unwrap();
+    assert!(events[first2..].iter().all(|e| e.job() == 2));
+    // Generous bound: switching must not wait for job 1 to finish (it never would).
+    assert!(t.elapsed() < Duration::from_secs(30));
+}
+
+#[test]
+fn a_bad_file_fails_with_its_name_and_the_worker_lives_on() {
+    let worker = Worker::spawn(|| {});
+    worker.send(load(
+        1,
+        "/nonexistent/scene.gltf",
+        SolverSettings::default(),
+    ));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Failed { .. } | Event::Converged { .. })
+    });
+    match events.last() {
+        Some(Event::Failed { job: 1, error }) => {
+            assert!(error.contains("/nonexistent/scene.gltf"), "{error}")
+        }
+        other => panic!("{other:?}"),
+    }
+    // The same worker then opens a good scene.
+    worker.send(load(2, "builtin:cornell", SolverSettings::default()));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    assert!(matches!(
+        events.last(),
+        Some(Event::Converged { job: 2, .. })
+    ));
+}
+
+#[test]
+fn pause_stops_snapshots_and_new_settings_restart_the_solve() {
+    let worker = Worker::spawn(|| {});
+    let slow = SolverSettings {
+        tolerance: 1e-12,
+        ..Default::default()
+    };
+    worker.send(load(1, "builtin:cornell", slow));
+    until(&worker, |e| matches!(e, Event::Snapshot { .. }));
+    worker.send(Command::Pause);
+    // Let in-flight events arrive, then nothing more while paused.
+    std::thread::sleep(Duration::from_millis(300));
+    worker.drain();
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(worker.drain().is_empty(), "events while paused");
+    // New settings restart the solve (iterations start over) and it converges.
+    worker.send(Command::SetSettings(SolverSettings {
+        tolerance: 1e-3,
+        method: Method::GaussSeidel,
+        ..Default::default()
+    }));
+    worker.send(Command::Resume);
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    match events.last() {
+        Some(Event::Converged { stats, .. }) => {
+            assert_eq!(stats.method, Some(Method::GaussSeidel));
+            assert!(stats.converged);
+        }
+        other => panic!("{other:?}"),
+    }
+}
