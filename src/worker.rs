@@ -223,21 +223,13 @@ fn run(
                 }
                 Command::SetSettings(settings) => {
                     if let Some(j) = &mut job {
-                        match j.prepared.solver(settings) {
-                            Ok(s) => restart(j, s),
-                            Err(e) => send(Event::Failed {
-                                job: j.id,
-                                error: e.to_string(),
-                            }),
-                        }
+                        restart(j, settings, &send);
                     }
                 }
                 Command::Reset => {
                     if let Some(j) = &mut job {
                         let settings = j.solver.settings().clone();
-                        if let Ok(s) = j.prepared.solver(settings) {
-                            restart(j, s);
-                        }
+                        restart(j, settings, &send);
                     }
                 }
                 Command::Pause => {
@@ -292,10 +284,20 @@ fn run(
     }
 }
 
-fn restart(j: &mut Job, solver: Solver) {
-    j.solver = solver;
-    j.done = false;
-    j.last_snapshot = None;
+/// A fresh solve of `settings` on the job's mesh; a settings error is reported, and the
+/// old solve is kept.
+fn restart(j: &mut Job, settings: SolverSettings, send: &impl Fn(Event)) {
+    match j.prepared.solver(settings) {
+        Ok(solver) => {
+            j.solver = solver;
+            j.done = false;
+            j.last_snapshot = None;
+        }
+        Err(e) => send(Event::Failed {
+            job: j.id,
+            error: e.to_string(),
+        }),
+    }
 }
 
 fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
