@@ -1,5 +1,6 @@
-//! The command line (DESIGN.md §5): `solve`, `probe` and `bench`. Each drives scene → mesh
-//! → accel → solver directly, with no thread and no GUI. Errors surface as one line naming
+//! The command line (DESIGN.md §5): `solve`, `probe`, `bench` and `render` drive scene →
+//! mesh → accel → solver directly, with no thread and no window; `view` (the default with
+//! no subcommand) opens the viewer. Errors surface as one line naming
 //! the file and the problem, and exit status 1.
 
 use crate::export::{baked_glb, write_atomic};
@@ -19,21 +20,62 @@ mod bench;
 
 /// Diffuse global illumination (radiosity) for glTF scenes.
 #[derive(Parser, Debug)]
-#[command(name = "radiosity", version, about, long_about = None)]
+#[command(
+    name = "radiosity",
+    version,
+    about,
+    long_about = None,
+    args_conflicts_with_subcommands = true
+)]
 pub struct Cli {
+    /// With no subcommand: open the viewer on this scene (default builtin:cornell).
+    pub scene: Option<String>,
     /// Worker threads (default: all cores). Results do not depend on it.
     #[arg(long, global = true)]
     pub threads: Option<usize>,
     /// Print no warnings or progress.
     #[arg(long, short, global = true)]
     pub quiet: bool,
+    /// With no subcommand: `view builtin:cornell`.
     #[command(subcommand)]
-    pub command: Command,
+    pub command: Option<Command>,
 }
 
 /// The subcommands.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Open the interactive viewer on a scene (default builtin:cornell).
+    View {
+        scene: Option<String>,
+        #[command(flatten)]
+        options: SolveOptions,
+        /// Save a screenshot of the window to this PNG after --screenshot-after seconds of
+        /// solving, then exit.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        #[arg(long, default_value_t = 3.0)]
+        screenshot_after: f64,
+        /// On exit, write frame-time statistics (p50/p99 while solving) as JSON here.
+        #[arg(long)]
+        frame_stats: Option<PathBuf>,
+        /// Start with the wireframe on.
+        #[arg(long)]
+        wireframe: bool,
+        /// Turn the camera continuously (for measuring frame times while orbiting).
+        #[arg(long)]
+        orbit: bool,
+    },
+    /// Solve, then render an image offscreen with the viewer's renderer.
+    Render {
+        scene: String,
+        /// Output PNG.
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        view: RenderOptions,
+        #[command(flatten)]
+        options: SolveOptions,
+    },
     /// Solve a scene; optionally write a baked .glb and a stats JSON.
     Solve {
         /// A .gltf/.glb file, or builtin:cornell, builtin:furnace-cube, builtin:furnace-sphere.
@@ -86,6 +128,62 @@ pub enum Command {
         #[command(flatten)]
         options: SolveOptions,
     },
+}
+
+/// Camera and display options of `render` (the viewer's defaults when absent).
+#[derive(Args, Debug, Clone)]
+pub struct RenderOptions {
+    /// Image size in pixels, WxH.
+    #[arg(long, default_value = "1280x800", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Camera YAW,PITCH[,ZOOM]: degrees around +y (0 looks from +z), degrees above the
+    /// horizontal, and distance as a multiple of the one that frames the scene (default 1).
+    /// Default: the whole scene from its open side, as the viewer starts.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
+    pub camera: Option<(f32, f32, f32)>,
+    /// flat or gouraud.
+    #[arg(long, alias = "reconstruction", default_value = "gouraud")]
+    pub mode: Reconstruction,
+    /// Exposure in stops (default: auto exposure, as the viewer).
+    #[arg(long, allow_hyphen_values = true)]
+    pub ev: Option<f32>,
+    /// clamp, reinhard or aces.
+    #[arg(long, default_value = "reinhard")]
+    pub tonemap: crate::view::render::ToneMap,
+    /// False colour of log10 radiosity.
+    #[arg(long)]
+    pub false_colour: bool,
+    /// Draw element edges.
+    #[arg(long)]
+    pub wireframe: bool,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}': expected WxH, e.g. 1280x800"))?;
+    let w: u32 = w.trim().parse().map_err(|e| format!("'{w}': {e}"))?;
+    let h: u32 = h.trim().parse().map_err(|e| format!("'{h}': {e}"))?;
+    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+        return Err("width and height must be between 1 and 16384".into());
+    }
+    Ok((w, h))
+}
+
+fn parse_camera(s: &str) -> Result<(f32, f32, f32), String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("'{x}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let c = match v.as_slice() {
+        [y, p] => (*y, *p, 1.0),
+        [y, p, z] => (*y, *p, *z),
+        _ => return Err("expected YAW,PITCH or YAW,PITCH,ZOOM".into()),
+    };
+    if !(c.0.is_finite() && c.1.is_finite() && c.2.is_finite() && c.2 > 0.0) {
+        return Err("values must be finite and ZOOM positive".into());
+    }
+    Ok(c)
 }
 
 /// Options shared by every command that solves.
@@ -281,7 +379,48 @@ pub fn run(cli: Cli) -> Result<()> {
             .context("cannot set the thread count")?;
     }
     let quiet = cli.quiet;
-    match cli.command {
+    let command = match cli.command {
+        Some(c) => c,
+        // No subcommand: the viewer on the built-in Cornell box, with every default.
+        None => {
+            let mut args = vec!["radiosity".to_string(), "view".to_string()];
+            args.extend(cli.scene);
+            Cli::try_parse_from(args)?
+                .command
+                .context("the default command")?
+        }
+    };
+    match command {
+        Command::View {
+            scene,
+            options,
+            screenshot,
+            screenshot_after,
+            frame_stats,
+            wireframe,
+            orbit,
+        } => crate::view::app::run(crate::view::app::Options {
+            scene: scene.unwrap_or_else(|| "builtin:cornell".into()),
+            mesh: options.mesh_settings(),
+            solver: options.solver_settings(),
+            screenshot,
+            screenshot_after,
+            frame_stats,
+            wireframe,
+            orbit,
+        }),
+        Command::Render {
+            scene,
+            out,
+            view,
+            options,
+        } => {
+            let s = load_scene(&scene, &options, quiet)?;
+            let prepared = prepare(&s, &options, quiet);
+            let mut solver = prepared.solver(options.solver_settings())?;
+            run_with_progress(&mut solver, options.time_limit, quiet)?;
+            render(&prepared, &solver.radiosity(), &view, &out, quiet)
+        }
         Command::Solve {
             scene,
             options,
@@ -375,6 +514,46 @@ pub fn run(cli: Cli) -> Result<()> {
             bench::convergence(&s, &options, methods, &reference, time_limit, &out, quiet)
         }
     }
+}
+
+/// Renders `radiosity` on `prepared`'s mesh to the PNG `out` with the viewer's renderer.
+fn render(
+    prepared: &Prepared,
+    radiosity: &[Vec3],
+    view: &RenderOptions,
+    out: &Path,
+    quiet: bool,
+) -> Result<()> {
+    use crate::view::render::{Display, render_image};
+    let mesh = &prepared.mesh;
+    let mut camera = crate::view::default_camera(mesh, &prepared.bvh);
+    if let Some((yaw, pitch, zoom)) = view.camera {
+        camera.yaw = yaw.to_radians();
+        camera.pitch = pitch.clamp(-89.0, 89.0).to_radians();
+        camera.distance *= zoom;
+    }
+    let auto = crate::view::auto_exposure(mesh, radiosity);
+    let display = Display {
+        reconstruction: view.mode,
+        ev: view.ev.or(auto.map(|a| a.0)).unwrap_or(0.0),
+        tonemap: view.tonemap,
+        false_colour: view.false_colour,
+        log_range: auto.map(|a| a.1).unwrap_or((-2.0, 2.0)),
+        wireframe: view.wireframe,
+        selected: None,
+    };
+    let (image, adapter) = render_image(
+        mesh,
+        radiosity,
+        &camera,
+        &display,
+        [view.size.0, view.size.1],
+    )?;
+    crate::view::write_png(out, &image)?;
+    if !quiet {
+        eprintln!("rendered {} with {adapter}", out.display());
+    }
+    Ok(())
 }
 
 /// Reads a points CSV: header naming x,y,z,nx,ny,nz (any order, extra columns ignored).

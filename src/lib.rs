@@ -3,7 +3,7 @@
 //! The pipeline (DESIGN.md §1): [`scene`] (CPU truth) → [`mesh`] (patches and elements) →
 //! [`accel`] (BVH, occlusion) → [`solver`] (form factors, methods, `Solver::step`). The core
 //! has no GUI or GPU dependency; `cli` drives it from the command line and [`worker`] from
-//! a thread for the viewer.
+//! a thread for the viewer ([`view`]).
 
 pub mod accel;
 pub mod cli;
@@ -12,4 +12,5 @@ pub mod mesh;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;
+pub mod view;
 pub mod worker;

@@ -9,12 +9,15 @@
 //! long load, mesh or solver step ends early. A panic or error inside a job becomes
 //! [`Event::Failed`]; the worker lives on and takes the next command.
 
+use crate::accel::Bvh;
 use crate::cli::open_scene;
-use crate::mesh::{Mesh, MeshSettings};
+use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
-use crate::solver::{Solver, SolverSettings, Stats, StepOutcome};
-use glam::Vec3;
+use crate::scene::{Material, Scene};
+use crate::solver::{PatchEdit, Solver, SolverSettings, Stats, StepOutcome};
+use glam::{DMat4, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, TryRecvError, channel};
 use std::sync::{Arc, Mutex};
@@ -41,6 +44,26 @@ pub enum Command {
     Resume,
     /// Restart the current job's solve from nothing.
     Reset,
+    /// Change a material of the current job live (Chen's incremental radiosity: the
+    /// difference is shot as signed unshot energy; nothing restarts). `emission` is the
+    /// emitted radiance L_e, W/(m²·sr).
+    SetMaterial {
+        material: u32,
+        reflectance: Vec3,
+        emission: Vec3,
+    },
+    /// Place an object anew: the scene is meshed again and the solve restarts on the new
+    /// geometry (a new `Loaded` with the same job id, then snapshots).
+    SetTransform {
+        object: u32,
+        world_from_local: DMat4,
+    },
+    /// Whether snapshots include Cohen et al.'s ambient term (progressive only).
+    SetAmbient(bool),
+    /// Write the current solution as a baked .glb (radiance per vertex, edited materials).
+    Export {
+        path: PathBuf,
+    },
     Shutdown,
 }
 
@@ -59,18 +82,29 @@ pub enum Event {
         job: u64,
         stage: Stage,
     },
-    /// The scene is meshed: the UI builds its display from `mesh`.
+    /// The scene is meshed (or meshed again after a move): the UI builds its display from
+    /// `mesh`, picks with `bvh` and lists `materials` and `objects`.
     Loaded {
         job: u64,
         mesh: Arc<Mesh>,
+        bvh: Arc<Bvh>,
+        materials: Vec<Material>,
+        objects: Vec<ObjectInfo>,
         warnings: Vec<String>,
     },
-    /// The newest radiosity per element (with the ambient term for progressive display).
+    /// The newest radiosity per element (with the ambient term for progressive display
+    /// unless turned off) and its Gouraud vertex values for the display mesh.
     Snapshot {
         job: u64,
         version: u64,
         radiosity: Arc<[Vec3]>,
+        vertex: Arc<[Vec3]>,
         stats: Stats,
+    },
+    /// An export finished: the path written, or why not.
+    Exported {
+        job: u64,
+        result: Result<PathBuf, String>,
     },
     Converged {
         job: u64,
@@ -89,9 +123,17 @@ impl Event {
             | Event::Loaded { job, .. }
             | Event::Snapshot { job, .. }
             | Event::Converged { job, .. }
+            | Event::Exported { job, .. }
             | Event::Failed { job, .. } => *job,
         }
     }
+}
+
+/// An object as the UI lists it.
+#[derive(Clone, Debug)]
+pub struct ObjectInfo {
+    pub name: String,
+    pub world_from_local: DMat4,
 }
 
 /// The UI's end of the worker.
@@ -103,7 +145,8 @@ pub struct Worker {
     thread: Option<JoinHandle<()>>,
 }
 
-/// How often snapshots are sent at most (a 60 Hz frame).
+/// How often snapshots are sent at most (a 60 Hz frame); on big meshes also at most every
+/// 4× the time a snapshot takes to build, so snapshots cost the solver at most 20 %.
 const SNAPSHOT_INTERVAL: Duration = Duration::from_millis(16);
 
 impl Worker {
@@ -161,6 +204,11 @@ impl Drop for Worker {
 /// The current job on the worker.
 struct Job {
     id: u64,
+    source: Source,
+    scene: Scene,
+    mesh_settings: MeshSettings,
+    ambient: bool,
+    snapshot_cost: Duration,
     prepared: Prepared,
     solver: Solver,
     version: u64,
@@ -242,6 +290,46 @@ fn run(
                         j.paused = false;
                     }
                 }
+                Command::SetAmbient(on) => {
+                    if let Some(j) = &mut job {
+                        j.ambient = on;
+                        snapshot(j, &send);
+                    }
+                }
+                Command::SetMaterial {
+                    material,
+                    reflectance,
+                    emission,
+                } => {
+                    if let Some(j) = &mut job {
+                        edit_material(j, material, reflectance, emission, &send);
+                    }
+                }
+                Command::SetTransform {
+                    object,
+                    world_from_local,
+                } => {
+                    if let Some(j) = &mut job {
+                        let flag = cancel.lock().unwrap_or_else(|e| e.into_inner()).clone();
+                        let result = catch_unwind(AssertUnwindSafe(|| {
+                            move_object(j, object, world_from_local, &flag, &send)
+                        }));
+                        if let Err(panic) = result {
+                            let id = j.id;
+                            job = None;
+                            send(Event::Failed {
+                                job: id,
+                                error: panic_message(&panic),
+                            });
+                        }
+                    }
+                }
+                Command::Export { path } => {
+                    if let Some(j) = &mut job {
+                        let result = export(j, &path);
+                        send(Event::Exported { job: j.id, result });
+                    }
+                }
             }
             continue;
         }
@@ -250,9 +338,8 @@ fn run(
         let outcome = catch_unwind(AssertUnwindSafe(|| j.solver.step(&flag)));
         match outcome {
             Ok(Ok(StepOutcome::Working)) => {
-                if j.last_snapshot
-                    .is_none_or(|t| t.elapsed() >= SNAPSHOT_INTERVAL)
-                {
+                let interval = SNAPSHOT_INTERVAL.max(j.snapshot_cost * 4);
+                if j.last_snapshot.is_none_or(|t| t.elapsed() >= interval) {
                     snapshot(j, &send);
                 }
             }
@@ -301,14 +388,161 @@ fn restart(j: &mut Job, settings: SolverSettings, send: &impl Fn(Event)) {
 }
 
 fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
+    let start = Instant::now();
     j.version += 1;
+    let radiosity = j.solver.display_radiosity(j.ambient);
+    let mesh = j.solver.mesh();
+    let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
+    j.snapshot_cost = start.elapsed();
     j.last_snapshot = Some(Instant::now());
     send(Event::Snapshot {
         job: j.id,
         version: j.version,
-        radiosity: j.solver.display_radiosity(true).into(),
+        radiosity: radiosity.into(),
+        vertex: vertex.into(),
         stats: j.solver.stats().clone(),
     });
+}
+
+/// Chen's incremental edit: new ρ and E for every patch of `material`, shot as a signed
+/// difference by the running solver.
+fn edit_material(
+    j: &mut Job,
+    material: u32,
+    reflectance: Vec3,
+    emission: Vec3,
+    send: &impl Fn(Event),
+) {
+    let Some(m) = j.scene.materials.get_mut(material as usize) else {
+        send(Event::Failed {
+            job: j.id,
+            error: format!("no material {material} in the scene"),
+        });
+        return;
+    };
+    m.reflectance = reflectance.clamp(Vec3::ZERO, Vec3::splat(0.999));
+    m.emission = emission.max(Vec3::ZERO);
+    let m = m.clone();
+    let mesh = Arc::clone(j.solver.mesh());
+    let edits: Vec<PatchEdit> = mesh
+        .patches
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.material == material)
+        .filter_map(|(i, p)| {
+            let o = j.scene.objects.get(p.object as usize)?;
+            let (rho, e, _) = surface_values(&m, o, p.triangle as usize);
+            Some(PatchEdit {
+                patch: i as u32,
+                reflectance: rho,
+                emission: e,
+            })
+        })
+        .collect();
+    j.solver.edit_patches(&edits);
+    j.done = j.solver.is_converged();
+    // The first changed frame goes out at once.
+    snapshot(j, send);
+}
+
+/// Moves an object: mesh again, rebuild the BVH, restart the solve with the same settings.
+fn move_object(
+    j: &mut Job,
+    object: u32,
+    world_from_local: DMat4,
+    cancel: &AtomicBool,
+    send: &impl Fn(Event),
+) {
+    let Some(o) = j.scene.objects.get_mut(object as usize) else {
+        send(Event::Failed {
+            job: j.id,
+            error: format!("no object {object} in the scene"),
+        });
+        return;
+    };
+    if !world_from_local.is_finite() || world_from_local.determinant().abs() < 1e-12 {
+        send(Event::Failed {
+            job: j.id,
+            error: "that transform is degenerate (zero scale or not finite)".into(),
+        });
+        return;
+    }
+    let old = std::mem::replace(&mut o.world_from_local, world_from_local);
+    // Keep the triangles counter-clockwise in world space when the new transform mirrors
+    // and the old did not (or the reverse), as the loader does.
+    if (old.determinant() < 0.0) != (world_from_local.determinant() < 0.0) {
+        for t in &mut o.triangles {
+            t.swap(1, 2);
+        }
+    }
+    send(Event::Progress {
+        job: j.id,
+        stage: Stage::Meshing,
+    });
+    let prepared = Prepared::new(&j.scene, &j.mesh_settings);
+    if cancel.load(Ordering::Relaxed) {
+        return;
+    }
+    match prepared.solver(j.solver.settings().clone()) {
+        Ok(solver) => {
+            // The new mesh is read from the scene, which already holds the material edits.
+            send(loaded_event(j.id, &j.scene, &prepared));
+            j.prepared = prepared;
+            j.solver = solver;
+            j.done = false;
+            j.last_snapshot = None;
+            send(Event::Progress {
+                job: j.id,
+                stage: Stage::Solving,
+            });
+        }
+        Err(e) => send(Event::Failed {
+            job: j.id,
+            error: e.to_string(),
+        }),
+    }
+}
+
+fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, String> {
+    if !j.source.0.starts_with("builtin:") {
+        let opened = std::path::Path::new(&j.source.0);
+        let same = match (opened.canonicalize(), path.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => opened == path,
+        };
+        if same {
+            return Err(format!(
+                "{}: will not overwrite the opened scene; choose another file",
+                path.display()
+            ));
+        }
+    }
+    let radiosity = j.solver.radiosity();
+    let mesh = j.solver.mesh();
+    let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
+    let bytes = crate::export::baked_glb(&j.scene, mesh, &vertex);
+    crate::export::write_atomic(path, &bytes).map_err(|e| format!("{e:#}"))?;
+    Ok(path.to_path_buf())
+}
+
+fn loaded_event(id: u64, scene: &Scene, prepared: &Prepared) -> Event {
+    let mut warnings = scene.warnings.clone();
+    warnings.extend(prepared.mesh.warnings.iter().cloned());
+    Event::Loaded {
+        job: id,
+        mesh: Arc::clone(&prepared.mesh),
+        bvh: Arc::clone(&prepared.bvh),
+        materials: scene.materials.clone(),
+        objects: scene
+            .objects
+            .iter()
+            .map(|o| ObjectInfo {
+                name: o.name.clone(),
+                world_from_local: o.world_from_local,
+            })
+            .collect(),
+        warnings,
+    }
 }
 
 fn load(
@@ -336,17 +570,18 @@ fn load(
         return Ok(None);
     }
     let solver = prepared.solver(solver).map_err(|e| e.to_string())?;
-    send(Event::Loaded {
-        job: id,
-        mesh: Arc::clone(&prepared.mesh),
-        warnings: scene.warnings.clone(),
-    });
+    send(loaded_event(id, &scene, &prepared));
     send(Event::Progress {
         job: id,
         stage: Stage::Solving,
     });
     Ok(Some(Job {
         id,
+        source: source.clone(),
+        scene,
+        mesh_settings: mesh.clone(),
+        ambient: true,
+        snapshot_cost: Duration::ZERO,
         prepared,
         solver,
         version: 0,

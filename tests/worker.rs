@@ -204,3 +204,113 @@ fn pause_stops_snapshots_and_new_settings_restart_the_solve() {
         other => panic!("{other:?}"),
     }
 }
+
+fn last_snapshot(events: &[Event]) -> Arc<[glam::Vec3]> {
+    events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            Event::Snapshot { radiosity, .. } => Some(radiosity.clone()),
+            _ => None,
+        })
+        .expect("a snapshot")
+}
+
+#[test]
+fn a_material_edit_reaches_the_running_solver_without_a_restart() {
+    let worker = Worker::spawn(|| {});
+    let settings = SolverSettings {
+        tolerance: 1e-6,
+        ..Default::default()
+    };
+    worker.send(load(1, "builtin:cornell", settings));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let before = last_snapshot(&events);
+    // Doubling the only emitter doubles every radiosity (B is linear in E with ρ fixed):
+    // material 3 is the built-in Cornell box's light.
+    let light = builtin::cornell_box().materials[3].clone();
+    worker.send(Command::SetMaterial {
+        material: 3,
+        reflectance: light.reflectance,
+        emission: light.emission * 2.0,
+    });
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    // The changed frame comes at once, and nothing was reloaded or restarted.
+    assert!(
+        matches!(events.first(), Some(Event::Snapshot { .. })),
+        "{:?}",
+        events.first()
+    );
+    assert!(!events.iter().any(|e| matches!(e, Event::Loaded { .. })));
+    let after = last_snapshot(&events);
+    // Tolerance: both solves stop at 1e-6 unshot; the ambient term is zero once converged.
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (a, b) in after.iter().zip(before.iter()) {
+        num += (*a - *b * 2.0).as_dvec3().length_squared();
+        den += (*b * 2.0).as_dvec3().length_squared();
+    }
+    let err = (num / den).sqrt();
+    assert!(err < 1e-4, "RMS difference to 2 × before: {err:e}");
+}
+
+#[test]
+fn moving_an_object_meshes_again_and_keeps_material_edits() {
+    let worker = Worker::spawn(|| {});
+    worker.send(load(1, "builtin:cornell", SolverSettings::default()));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let (objects, mesh) = events
+        .iter()
+        .find_map(|e| match e {
+            Event::Loaded { objects, mesh, .. } => Some((objects.clone(), mesh.clone())),
+            _ => None,
+        })
+        .expect("loaded");
+    // Move the last object (a block) 5 cm along +x; edit a material first.
+    let o = objects.len() as u32 - 1;
+    worker.send(Command::SetMaterial {
+        material: 0,
+        reflectance: glam::Vec3::splat(0.5),
+        emission: glam::Vec3::ZERO,
+    });
+    let shift = glam::DVec3::new(0.05, 0.0, 0.0);
+    worker.send(Command::SetTransform {
+        object: o,
+        world_from_local: glam::DMat4::from_translation(shift)
+            * objects[o as usize].world_from_local,
+    });
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let (moved, materials) = events
+        .iter()
+        .find_map(|e| match e {
+            Event::Loaded {
+                mesh, materials, ..
+            } => Some((mesh.clone(), materials.clone())),
+            _ => None,
+        })
+        .expect("a new mesh after the move");
+    assert!(matches!(
+        events.last(),
+        Some(Event::Converged { job: 1, .. })
+    ));
+    assert_eq!(materials[0].reflectance, glam::Vec3::splat(0.5));
+    // Every patch of the moved object is 5 cm further along +x (mesh frames may differ by
+    // their origins, so compare world positions).
+    let centroid = |m: &radiosity::mesh::Mesh| -> glam::DVec3 {
+        let ps: Vec<_> = m.patches.iter().filter(|p| p.object == o).collect();
+        ps.iter()
+            .map(|p| p.centroid().as_dvec3())
+            .sum::<glam::DVec3>()
+            / ps.len() as f64
+            + m.origin
+    };
+    let d = centroid(&moved) - centroid(&mesh);
+    assert!((d - shift).length() < 1e-4, "moved by {d}");
+}

@@ -52,6 +52,8 @@ pub struct Patch {
     pub area: f32,
     /// Index of the scene triangle (the BVH's numbering) this patch lies on.
     pub scene_triangle: u32,
+    /// Index of that triangle within its object.
+    pub triangle: u32,
     /// Object and material indices in the scene.
     pub object: u32,
     pub material: u32,
@@ -133,6 +135,7 @@ pub struct Mesh {
 struct Source {
     verts: [Vec3; 3],
     scene_triangle: u32,
+    triangle: u32,
     object: u32,
     material: u32,
     reflectance: Vec3,
@@ -247,15 +250,12 @@ impl Mesh {
                     degenerate += 1;
                     continue;
                 }
-                let raw = mat.reflectance * o.reflectance_tint(ti);
-                let rho = sanitize(raw).min(Vec3::splat(0.999));
-                if raw.max_element() > 0.999 {
-                    clamped += 1;
-                }
-                let emission = sanitize(mat.emission * o.emission_tint(ti)) * std::f32::consts::PI;
+                let (rho, emission, was_clamped) = surface_values(mat, o, ti);
+                clamped += was_clamped as usize;
                 sources.push(Source {
                     verts,
                     scene_triangle,
+                    triangle: ti as u32,
                     object: oi as u32,
                     material: m,
                     reflectance: rho,
@@ -319,6 +319,7 @@ impl Mesh {
             normal: n.normalize_or_zero(),
             area: 0.5 * n.length(),
             scene_triangle: s.scene_triangle,
+            triangle: s.triangle,
             object: s.object,
             material: s.material,
             back,
@@ -437,7 +438,21 @@ impl Mesh {
     }
 }
 
-fn sanitize(v: Vec3) -> Vec3 {
+/// Reflectance ρ (clamped to [0, 0.999]) and emitted radiosity E = π L_e of triangle `t`
+/// of object `o` with material `mat`, and whether ρ had to be clamped.
+pub fn surface_values(
+    mat: &crate::scene::Material,
+    o: &crate::scene::Object,
+    t: usize,
+) -> (Vec3, Vec3, bool) {
+    let raw = mat.reflectance * o.reflectance_tint(t);
+    let rho = sanitize(raw).min(Vec3::splat(0.999));
+    let emission = sanitize(mat.emission * o.emission_tint(t)) * std::f32::consts::PI;
+    (rho, emission, raw.max_element() > 0.999)
+}
+
+/// Negative and non-finite channels become 0.
+pub(crate) fn sanitize(v: Vec3) -> Vec3 {
     Vec3::new(
         if v.x.is_finite() { v.x.max(0.0) } else { 0.0 },
         if v.y.is_finite() { v.y.max(0.0) } else { 0.0 },

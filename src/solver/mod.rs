@@ -32,7 +32,7 @@ pub mod lighting;
 pub mod stochastic;
 
 use crate::accel::Bvh;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, sanitize};
 use form_factor::{FormFactorSettings, element_to_patch};
 use glam::{DVec3, Vec3};
 use lighting::ExternalLight;
@@ -147,6 +147,16 @@ pub struct Stats {
     pub converged: bool,
 }
 
+/// A live material change of one patch (see [`Solver::edit_patches`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchEdit {
+    pub patch: u32,
+    /// New reflectance ρ (clamped to [0, 0.999]).
+    pub reflectance: Vec3,
+    /// New emitted radiosity E = π L_e, W/m².
+    pub emission: Vec3,
+}
+
 /// What a step did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StepOutcome {
@@ -219,8 +229,18 @@ pub struct Solver {
     cache_used: usize,
     /// Form-factor rows per element: (patch, F_ip), for gathering and direct.
     rows: Vec<Sparse>,
-    /// Reflectance per element (its patch's).
+    /// Reflectance per element (its patch's, or an edit's).
     reflectance: Vec<Vec3>,
+    /// Emitted radiosity E per element (its patch's, or an edit's).
+    emission: Vec<Vec3>,
+    /// First-bounce irradiance factor h_i of external light, so E'_i = E_i + ρ_i h_i.
+    external_in: Vec<Vec3>,
+    /// Progressive: radiosity gathered so far before reflection, H_i = Σ F_ip ΔB̄_p, so that
+    /// B_i = E'_i + ρ_i H_i at every moment. Chen's incremental edits need it.
+    gathered: Vec<DVec3>,
+    /// Largest source power seen (the scale for the unshot fraction when an edit turns the
+    /// lights off and the source power drops to zero).
+    power_scale: f64,
     /// The stochastic iteration under way.
     pending: Option<Pending>,
     stats: Stats,
@@ -270,7 +290,16 @@ impl Solver {
             .iter()
             .map(|e| mesh.patches[e.patch as usize].reflectance)
             .collect();
+        let emission = mesh
+            .elements
+            .iter()
+            .map(|e| mesh.patches[e.patch as usize].emission)
+            .collect();
         Ok(Solver {
+            emission,
+            external_in: vec![Vec3::ZERO; n],
+            gathered: vec![DVec3::ZERO; n],
+            power_scale: 0.0,
             source: vec![Vec3::ZERO; n],
             radiosity: vec![DVec3::ZERO; n],
             unshot: vec![DVec3::ZERO; n],
@@ -367,6 +396,83 @@ impl Solver {
             .collect()
     }
 
+    /// Changes the reflectance and emitted radiosity of some patches without restarting:
+    /// Chen's incremental radiosity ("Incremental radiosity", Graphics Gems II, 1991). With
+    /// H_i the radiosity gathered by element i so far, B_i = E'_i + ρ_i H_i, so the edit
+    /// changes B_i by ΔE'_i + Δρ_i H_i; that difference is added to B_i and to its *signed*
+    /// unshot radiosity, and progressive shooting carries it (positive or negative) to the
+    /// rest of the scene. The gathering methods keep their current B as the starting guess
+    /// and sweep again; the direct method solves again from its stored rows; stochastic
+    /// Jacobi, whose sources must be positive, starts over.
+    pub fn edit_patches(&mut self, edits: &[PatchEdit]) {
+        let mesh = Arc::clone(&self.mesh);
+        let lit = match self.phase {
+            Phase::Lighting(next) => next,
+            _ => mesh.elements.len(),
+        };
+        let incremental = self.settings.method == Method::Progressive;
+        for edit in edits {
+            let Some(patch) = mesh.patches.get(edit.patch as usize) else {
+                continue;
+            };
+            let rho = sanitize(edit.reflectance).min(Vec3::splat(0.999));
+            let emission = sanitize(edit.emission);
+            for i in patch.elements.clone() {
+                let i = i as usize;
+                let old_rho = self.reflectance[i];
+                self.reflectance[i] = rho;
+                self.emission[i] = emission;
+                if i >= lit {
+                    continue; // its source is computed later, with the new values
+                }
+                let s = emission + rho * self.external_in[i];
+                let ds = (s - self.source[i]).as_dvec3();
+                self.source[i] = s;
+                if incremental {
+                    let delta = ds + (rho - old_rho).as_dvec3() * self.gathered[i];
+                    self.radiosity[i] += delta;
+                    self.unshot[i] += delta;
+                } else if matches!(self.phase, Phase::Lighting(_)) {
+                    self.radiosity[i] = s.as_dvec3();
+                    self.unshot[i] = s.as_dvec3();
+                }
+            }
+        }
+        if matches!(self.phase, Phase::Lighting(_)) {
+            return; // the source power is summed when lighting finishes
+        }
+        self.stats.source_power = self
+            .source
+            .iter()
+            .zip(&mesh.elements)
+            .map(|(s, e)| sum3(*s) * e.area as f64)
+            .sum();
+        self.power_scale = self.power_scale.max(self.stats.source_power);
+        self.stats.converged = false;
+        match self.settings.method {
+            Method::StochasticJacobi => {
+                // Restart: its sources cannot be negative.
+                self.pending = None;
+                for i in 0..mesh.elements.len() {
+                    self.radiosity[i] = self.source[i].as_dvec3();
+                    self.unshot[i] = self.source[i].as_dvec3();
+                }
+                self.shot_power = 0.0;
+                self.captured_power = 0.0;
+                self.phase = Phase::Iterating;
+            }
+            _ => {
+                if self.phase == Phase::Done {
+                    self.phase = Phase::Iterating;
+                }
+            }
+        }
+        if self.power_scale <= 0.0 {
+            self.phase = Phase::Done;
+            self.stats.converged = true;
+        }
+    }
+
     /// Does one short unit of work (about `step_budget` of wall time, less if it converges)
     /// and reports whether the solve is done. Checks `cancel` between pieces of work.
     pub fn step(&mut self, cancel: &AtomicBool) -> Result<StepOutcome, SolverError> {
@@ -426,13 +532,14 @@ impl Solver {
         let bvh = &self.bvh;
         let external = &self.external;
         let has_external = !external.lights.is_empty() || external.environment.is_some();
+        let (reflectance, emission) = (&self.reflectance, &self.emission);
         let results: Vec<(Vec3, u32)> = (next..end)
             .into_par_iter()
             .with_min_len(16)
             .map(|i| {
                 let e = &mesh.elements[i];
                 let p = &mesh.patches[e.patch as usize];
-                let (h, rays) = if has_external {
+                let (h, rays): (Vec3, u32) = if has_external {
                     lighting::irradiance(
                         mesh,
                         bvh,
@@ -445,12 +552,16 @@ impl Solver {
                 } else {
                     (Vec3::ZERO, 0)
                 };
-                let s = p.emission + p.reflectance * h;
-                (if s.is_finite() { s } else { Vec3::ZERO }, rays)
+                let h = if h.is_finite() { h } else { Vec3::ZERO };
+                (h, rays)
             })
             .collect();
-        for (k, (s, rays)) in results.into_iter().enumerate() {
+        for (k, (h, rays)) in results.into_iter().enumerate() {
             let i = next + k;
+            let s = emission[i] + reflectance[i] * h;
+            let s = if s.is_finite() { s } else { Vec3::ZERO };
+            self.external_in[i] = h;
+            self.gathered[i] = DVec3::ZERO;
             self.source[i] = s;
             self.radiosity[i] = s.as_dvec3();
             self.unshot[i] = s.as_dvec3();
@@ -466,11 +577,12 @@ impl Solver {
             .zip(&self.mesh.elements)
             .map(|(s, e)| sum3(*s) * e.area as f64)
             .sum();
+        self.power_scale = self.power_scale.max(self.stats.source_power);
         self.phase = match self.settings.method {
             Method::Progressive | Method::StochasticJacobi => Phase::Iterating,
             _ => Phase::Rows(0),
         };
-        if self.stats.source_power <= 0.0 {
+        if self.power_scale <= 0.0 {
             // No light at all: the solution is zero and already exact.
             self.stats.unshot_fraction = Some(0.0);
             self.stats.residual = Some(0.0);
@@ -577,9 +689,11 @@ impl Solver {
         let mesh = Arc::clone(&self.mesh);
         let (mut best, mut best_power, mut total) = (usize::MAX, 0.0f64, 0.0f64);
         for (pi, p) in mesh.patches.iter().enumerate() {
+            // Signed unshot radiosity (after an edit) is shot like positive: by magnitude.
             let mut power = 0.0;
             for i in p.elements.clone() {
-                power += sum3d(self.unshot[i as usize]) * mesh.elements[i as usize].area as f64;
+                power +=
+                    sum3d(self.unshot[i as usize].abs()) * mesh.elements[i as usize].area as f64;
             }
             total += power;
             if power > best_power {
@@ -587,7 +701,7 @@ impl Solver {
                 best = pi;
             }
         }
-        let fraction = total / self.stats.source_power;
+        let fraction = total / self.power_scale;
         self.stats.unshot_fraction = Some(fraction);
         self.stats.residual = Some(fraction);
         if fraction <= self.settings.tolerance || best == usize::MAX {
@@ -605,12 +719,14 @@ impl Solver {
         let mut captured = 0.0f64;
         for &(i, f) in column.iter() {
             let i = i as usize;
-            let d = self.reflectance[i].as_dvec3() * shot * f as f64;
+            let g = shot * f as f64;
+            self.gathered[i] += g;
+            let d = self.reflectance[i].as_dvec3() * g;
             self.radiosity[i] += d;
             self.unshot[i] += d;
             captured += f as f64 * mesh.elements[i].area as f64;
         }
-        let shot_power = sum3d(shot) * p.area as f64;
+        let shot_power = sum3d(shot.abs()) * p.area as f64;
         self.shot_power += shot_power;
         self.captured_power += captured / p.area as f64 * shot_power;
         self.stats.energy_balance = Some(self.captured_power / self.shot_power);
@@ -626,7 +742,7 @@ impl Solver {
             Some(p) => p,
             None => {
                 let sources = stochastic::Sources::new(&mesh, &self.unshot);
-                let fraction = sources.total / self.stats.source_power;
+                let fraction = sources.total / self.power_scale;
                 self.stats.unshot_fraction = Some(fraction);
                 self.stats.residual = Some(fraction);
                 if fraction <= self.settings.tolerance {
@@ -700,7 +816,7 @@ impl Solver {
     }
 
     fn finish_sweep(&mut self, residual: f64) {
-        let r = residual / self.stats.source_power;
+        let r = residual / self.power_scale;
         self.stats.residual = Some(r);
         self.stats.iterations += 1;
         if r <= self.settings.tolerance {

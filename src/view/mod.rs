@@ -1,0 +1,98 @@
+//! The viewer (issue 3): an eframe/egui window over the solver worker, and the wgpu
+//! renderer it shares with `radiosity render` and the screenshot path.
+//!
+//! - [`app`]: the window: menus, side panel, the 3D view, picking, live material edits,
+//!   moving objects with undo, the convergence plot.
+//! - [`render`]: the offscreen wgpu renderer (colour + depth target, value textures).
+//! - [`camera`]: the orbit camera and picking rays.
+
+pub mod app;
+pub mod camera;
+pub mod render;
+
+use crate::accel::Bvh;
+use crate::mesh::Mesh;
+use anyhow::{Context, Result};
+use camera::Camera;
+use glam::Vec3;
+use std::path::Path;
+
+/// Encodes `image` as PNG and writes it atomically (temporary file, then rename).
+pub fn write_png(path: &Path, image: &image::RgbaImage) -> Result<()> {
+    let mut bytes = Vec::new();
+    image
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .with_context(|| format!("{}: cannot encode the PNG", path.display()))?;
+    crate::export::write_atomic(path, &bytes)
+}
+
+/// Bounding sphere (centre, radius) of the mesh's triangles in the mesh frame.
+pub fn bounds(mesh: &Mesh) -> Option<(Vec3, f32)> {
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for t in &mesh.triangles {
+        for v in t {
+            if v.is_finite() {
+                lo = lo.min(*v);
+                hi = hi.max(*v);
+            }
+        }
+    }
+    (lo.x <= hi.x).then(|| ((lo + hi) * 0.5, ((hi - lo) * 0.5).length()))
+}
+
+/// The starting view: the whole scene, seen from its open side (the first of +z, −z, +x,
+/// −x along which a ray from the centre escapes, as through a Cornell box's missing front
+/// wall), or from above at an angle when it is closed.
+pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
+    let Some((c, r)) = bounds(mesh) else {
+        return Camera::default();
+    };
+    let dirs = [
+        (Vec3::Z, 0.0f32),
+        (-Vec3::Z, std::f32::consts::PI),
+        (Vec3::X, std::f32::consts::FRAC_PI_2),
+        (-Vec3::X, -std::f32::consts::FRAC_PI_2),
+    ];
+    let open = dirs
+        .iter()
+        .find(|(d, _)| {
+            bvh.closest_hit(c, *d, 0.0, f32::INFINITY, u32::MAX)
+                .is_none()
+        })
+        .map(|(_, yaw)| *yaw);
+    let (yaw, pitch) = match open {
+        Some(yaw) => (yaw, 0.0),
+        None => (0.6, 0.6),
+    };
+    Camera::framing(c, r, yaw, pitch)
+}
+
+/// Auto exposure from per-element radiosity: the EV that maps the 95th percentile of the
+/// non-emitting elements' radiance to 0.8 before tone mapping, and a false-colour range
+/// (log10 W/m²) from three decades below that percentile to the brightest element.
+pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32))> {
+    let step = (radiosity.len() / 20_000).max(1);
+    let mut lit: Vec<f32> = Vec::new();
+    let mut top = 0.0f32;
+    for (i, b) in radiosity.iter().enumerate().step_by(step) {
+        let l = b.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        if !l.is_finite() || l <= 0.0 {
+            continue;
+        }
+        top = top.max(l);
+        let patch = mesh.elements.get(i)?.patch as usize;
+        if mesh.patches[patch].emission.max_element() <= 0.0 {
+            lit.push(l);
+        }
+    }
+    if lit.is_empty() {
+        return None;
+    }
+    lit.sort_by(|a, b| a.total_cmp(b));
+    let p95 = lit[((lit.len() - 1) as f32 * 0.95).round() as usize];
+    let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
+    Some((ev, (p95.log10() - 3.0, top.max(p95).log10())))
+}

@@ -1,0 +1,559 @@
+//! The wgpu renderer of the 3D view, shared by the viewer window, `radiosity render` and the
+//! screenshot path: it draws a [`Mesh`] with per-element radiosity into an offscreen colour
+//! target (sRGB) with a depth buffer. The viewer shows that target as an egui image; the
+//! command line reads it back to a PNG.
+//!
+//! Vertex data (one vertex per element corner) is uploaded once per mesh; a snapshot only
+//! writes two `Rgba32Float` textures (element values and display-vertex values), which the
+//! vertex shader reads with `textureLoad`, so streaming the solution costs 16 bytes per
+//! element and vertex, not a vertex-buffer rebuild.
+
+use super::camera::Camera;
+use crate::mesh::{Mesh, Reconstruction};
+use anyhow::{Context, Result, anyhow};
+use bytemuck::{Pod, Zeroable};
+use eframe::egui_wgpu::wgpu;
+use glam::Vec3;
+
+/// Width of the value textures (within the 2048 every adapter supports).
+const VALUE_WIDTH: u32 = 2048;
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Tone-mapping operators.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ToneMap {
+    /// Linear, clipped at 1.
+    Clamp,
+    /// L / (1 + luminance).
+    #[default]
+    Reinhard,
+    /// Narkowicz's fit of the ACES filmic curve.
+    Aces,
+}
+
+impl ToneMap {
+    pub const ALL: [ToneMap; 3] = [ToneMap::Clamp, ToneMap::Reinhard, ToneMap::Aces];
+    pub fn name(self) -> &'static str {
+        match self {
+            ToneMap::Clamp => "clamp",
+            ToneMap::Reinhard => "reinhard",
+            ToneMap::Aces => "aces",
+        }
+    }
+}
+
+impl std::str::FromStr for ToneMap {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        ToneMap::ALL
+            .into_iter()
+            .find(|t| t.name() == s)
+            .ok_or_else(|| format!("unknown tone map '{s}' (expected clamp, reinhard or aces)"))
+    }
+}
+
+/// How the radiosity is shown.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Display {
+    pub reconstruction: Reconstruction,
+    /// Exposure in stops: displayed radiance is 2^EV · B / π.
+    pub ev: f32,
+    pub tonemap: ToneMap,
+    /// False colour of log10 luminance of B over `log_range` (decades, W/m²).
+    pub false_colour: bool,
+    pub log_range: (f32, f32),
+    pub wireframe: bool,
+    pub selected: Option<u32>,
+}
+
+impl Default for Display {
+    fn default() -> Self {
+        Display {
+            reconstruction: Reconstruction::Gouraud,
+            ev: 0.0,
+            tonemap: ToneMap::default(),
+            false_colour: false,
+            log_range: (-2.0, 2.0),
+            wireframe: false,
+            selected: None,
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    exposure: f32,
+    recon: u32,
+    tonemap: u32,
+    false_colour: u32,
+    wire: u32,
+    selected: u32,
+    width: u32,
+    log_lo: f32,
+    log_hi: f32,
+    pad: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    element: u32,
+    vertex: u32,
+    object: u32,
+}
+
+/// Pipeline and uniforms: one per device.
+pub struct Renderer {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    uniforms: wgpu::Buffer,
+}
+
+/// A mesh on the GPU with its value textures.
+pub struct GpuMesh {
+    vertices: wgpu::Buffer,
+    count: u32,
+    element_values: wgpu::Texture,
+    vertex_values: wgpu::Texture,
+    bind_group: wgpu::BindGroup,
+    /// The mesh it was made from (to check snapshot sizes).
+    pub elements: usize,
+    pub display_vertices: usize,
+}
+
+/// An offscreen colour + depth target.
+pub struct Target {
+    pub color: wgpu::Texture,
+    pub view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    pub size: [u32; 2],
+}
+
+impl Target {
+    pub fn new(device: &wgpu::Device, size: [u32; 2]) -> Target {
+        let size = [size[0].max(1), size[1].max(1)];
+        let extent = wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        };
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radiosity view colour"),
+            size: extent,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radiosity view depth"),
+            size: extent,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        Target {
+            view: color.create_view(&Default::default()),
+            depth: depth.create_view(&Default::default()),
+            color,
+            size,
+        }
+    }
+}
+
+fn value_texture(device: &wgpu::Device, n: usize, label: &str) -> wgpu::Texture {
+    let rows = (n as u32).div_ceil(VALUE_WIDTH).max(1);
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: VALUE_WIDTH,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+fn write_values(queue: &wgpu::Queue, texture: &wgpu::Texture, values: &[Vec3]) {
+    if values.is_empty() {
+        return;
+    }
+    let rows = (values.len() as u32).div_ceil(VALUE_WIDTH);
+    let mut data = vec![[0.0f32; 4]; (rows * VALUE_WIDTH) as usize];
+    for (d, v) in data.iter_mut().zip(values) {
+        *d = [v.x, v.y, v.z, 1.0];
+    }
+    queue.write_texture(
+        texture.as_image_copy(),
+        bytemuck::cast_slice(&data),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(VALUE_WIDTH * 16),
+            rows_per_image: None,
+        },
+        wgpu::Extent3d {
+            width: VALUE_WIDTH,
+            height: rows,
+            depth_or_array_layers: 1,
+        },
+    );
+}
+
+impl Renderer {
+    pub fn new(device: &wgpu::Device) -> Renderer {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("radiosity view shader"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
+        });
+        let texture_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("radiosity view bind group layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                texture_entry(1),
+                texture_entry(2),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("radiosity view pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("radiosity view pipeline"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32],
+                })],
+                compilation_options: Default::default(),
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                // Each side of a surface is its own element (double-sided materials have a
+                // back patch wound the other way), so back faces are culled: no z-fighting,
+                // and single-sided walls are see-through from outside.
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+                compilation_options: Default::default(),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radiosity view uniforms"),
+            size: std::mem::size_of::<Uniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Renderer {
+            pipeline,
+            layout,
+            uniforms,
+        }
+    }
+
+    /// Uploads `mesh`'s elements (one vertex per corner) and makes its value textures.
+    pub fn upload(&self, device: &wgpu::Device, mesh: &Mesh) -> GpuMesh {
+        use wgpu::util::DeviceExt;
+        let mut vertices = Vec::with_capacity(mesh.elements.len() * 3);
+        for (i, e) in mesh.elements.iter().enumerate() {
+            let object = mesh.patches[e.patch as usize].object;
+            for k in 0..3 {
+                vertices.push(Vertex {
+                    position: e.verts[k].to_array(),
+                    element: i as u32,
+                    vertex: e.corners[k],
+                    object,
+                });
+            }
+        }
+        let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("radiosity view vertices"),
+            contents: if vertices.is_empty() {
+                &[0u8; 24]
+            } else {
+                bytemuck::cast_slice(&vertices)
+            },
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let element_values = value_texture(device, mesh.elements.len(), "element radiosity");
+        let vertex_values = value_texture(
+            device,
+            mesh.display.positions.len(),
+            "display-vertex radiosity",
+        );
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("radiosity view bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.uniforms.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(
+                        &element_values.create_view(&Default::default()),
+                    ),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(
+                        &vertex_values.create_view(&Default::default()),
+                    ),
+                },
+            ],
+        });
+        GpuMesh {
+            vertices: buffer,
+            count: vertices.len() as u32,
+            element_values,
+            vertex_values,
+            bind_group,
+            elements: mesh.elements.len(),
+            display_vertices: mesh.display.positions.len(),
+        }
+    }
+
+    /// Draws `mesh` (or clears, with none) into `target` as seen by `camera`.
+    pub fn render(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        target: &Target,
+        mesh: Option<&GpuMesh>,
+        camera: &Camera,
+        display: &Display,
+    ) {
+        let aspect = target.size[0] as f32 / target.size[1] as f32;
+        let u = Uniforms {
+            view_proj: camera.view_proj(aspect).to_cols_array_2d(),
+            exposure: 2f32.powf(display.ev) / std::f32::consts::PI,
+            recon: (display.reconstruction == Reconstruction::Gouraud) as u32,
+            tonemap: match display.tonemap {
+                ToneMap::Clamp => 0,
+                ToneMap::Reinhard => 1,
+                ToneMap::Aces => 2,
+            },
+            false_colour: display.false_colour as u32,
+            wire: display.wireframe as u32,
+            selected: display.selected.unwrap_or(u32::MAX),
+            width: VALUE_WIDTH,
+            log_lo: display.log_range.0,
+            log_hi: display.log_range.1,
+            pad: [0.0; 3],
+        };
+        queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("radiosity view pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &target.view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.02,
+                            g: 0.02,
+                            b: 0.025,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &target.depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            if let Some(mesh) = mesh
+                && mesh.count > 0
+            {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &mesh.bind_group, &[]);
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.draw(0..mesh.count, 0..1);
+            }
+        }
+        queue.submit([encoder.finish()]);
+    }
+}
+
+impl GpuMesh {
+    /// Writes a snapshot: per-element values and display-vertex values (sizes must match
+    /// the mesh; a mismatched snapshot, from another mesh, is ignored).
+    pub fn set_values(&self, queue: &wgpu::Queue, elements: &[Vec3], vertices: &[Vec3]) -> bool {
+        if elements.len() != self.elements || vertices.len() != self.display_vertices {
+            return false;
+        }
+        write_values(queue, &self.element_values, elements);
+        write_values(queue, &self.vertex_values, vertices);
+        true
+    }
+}
+
+/// A device with no window (for `render`, screenshots in tests): the same software or
+/// hardware adapter choice as the viewer, preferring Vulkan.
+pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
+    use eframe::egui_wgpu;
+    let setup =
+        egui_wgpu::WgpuSetup::CreateNew(egui_wgpu::WgpuSetupCreateNew::without_display_handle());
+    let instance = pollster::block_on(setup.new_instance());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    }))
+    .map_err(|e| {
+        anyhow!("no graphics adapter (install Mesa's mesa-vulkan-drivers for a software one): {e}")
+    })?;
+    let info = adapter.get_info();
+    let name = format!("{} ({:?})", info.name, info.backend);
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("radiosity headless"),
+        required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+        ..Default::default()
+    }))
+    .context("creating the graphics device")?;
+    Ok((device, queue, name))
+}
+
+/// Reads `target` back as an RGBA8 image (sRGB bytes, as shown on screen).
+pub fn read_back(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    target: &Target,
+) -> Result<image::RgbaImage> {
+    let [w, h] = target.size;
+    let unpadded = w * 4;
+    let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let padded = unpadded.div_ceil(align) * align;
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("radiosity readback"),
+        size: (padded * h) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        target.color.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: None,
+            },
+        },
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+    );
+    let index = queue.submit([encoder.finish()]);
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::Wait {
+            submission_index: Some(index),
+            timeout: Some(std::time::Duration::from_secs(60)),
+        })
+        .map_err(|e| anyhow!("waiting for the GPU: {e}"))?;
+    rx.recv()
+        .context("GPU readback dropped")?
+        .map_err(|e| anyhow!("mapping the readback buffer: {e}"))?;
+    let data = slice
+        .get_mapped_range()
+        .map_err(|e| anyhow!("reading the readback buffer: {e:?}"))?;
+    let mut pixels = Vec::with_capacity((unpadded * h) as usize);
+    for row in data.chunks_exact(padded as usize) {
+        pixels.extend_from_slice(&row[..unpadded as usize]);
+    }
+    drop(data);
+    buffer.unmap();
+    image::RgbaImage::from_raw(w, h, pixels).context("readback size mismatch")
+}
+
+/// Renders `mesh` with element values `radiosity` to an image, offscreen.
+pub fn render_image(
+    mesh: &Mesh,
+    radiosity: &[Vec3],
+    camera: &Camera,
+    display: &Display,
+    size: [u32; 2],
+) -> Result<(image::RgbaImage, String)> {
+    let (device, queue, adapter) = headless_device()?;
+    let renderer = Renderer::new(&device);
+    let gpu = renderer.upload(&device, mesh);
+    let vertex = mesh.display.vertex_values(&mesh.elements, radiosity);
+    gpu.set_values(&queue, radiosity, &vertex);
+    let target = Target::new(&device, size);
+    renderer.render(&device, &queue, &target, Some(&gpu), camera, display);
+    Ok((read_back(&device, &queue, &target)?, adapter))
+}
