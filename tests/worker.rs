@@ -314,3 +314,45 @@ fn moving_an_object_meshes_again_and_keeps_material_edits() {
     let d = centroid(&moved) - centroid(&mesh);
     assert!((d - shift).length() < 1e-4, "moved by {d}");
 }
+
+#[test]
+fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
+    let dir = std::env::temp_dir().join(format!("radiosity-export-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let opened = dir.join("cornell.gltf");
+    std::fs::write(&opened, builtin::cornell_box_gltf()).unwrap();
+    let original = std::fs::read(&opened).unwrap();
+    let worker = Worker::spawn(|| {});
+    worker.send(load(1, opened.to_str().unwrap(), SolverSettings::default()));
+    until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let out = dir.join("baked.glb");
+    worker.send(Command::Export { path: out.clone() });
+    let events = until(&worker, |e| matches!(e, Event::Exported { .. }));
+    match events.last() {
+        Some(Event::Exported { result: Ok(p), .. }) => assert_eq!(p, &out),
+        other => panic!("{other:?}"),
+    }
+    // The gltf crate (an independent reader) accepts it, with linear radiance per vertex.
+    let doc = gltf::Gltf::from_slice(&std::fs::read(&out).unwrap()).expect("a valid .glb");
+    assert!(doc.meshes().count() > 0);
+    assert!(
+        doc.meshes()
+            .flat_map(|m| m.primitives())
+            .all(|p| p.attributes().any(|(s, _)| s == gltf::Semantic::Colors(0)))
+    );
+    // Exporting over the opened scene is refused and leaves it as it was.
+    worker.send(Command::Export {
+        path: opened.clone(),
+    });
+    let events = until(&worker, |e| matches!(e, Event::Exported { .. }));
+    match events.last() {
+        Some(Event::Exported { result: Err(e), .. }) => {
+            assert!(e.contains("will not overwrite"), "{e}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(std::fs::read(&opened).unwrap(), original);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1292,7 +1292,14 @@ impl App {
         Plot::new("convergence")
             .height(160.0)
             .x_axis_label("solver time (s)")
-            .y_axis_formatter(|m, _| format!("1e{:.0}", m.value))
+            // Values are log10; label whole decades only.
+            .y_axis_formatter(|m, _| {
+                if (m.value - m.value.round()).abs() < 1e-6 {
+                    format!("1e{:.0}", m.value)
+                } else {
+                    String::new()
+                }
+            })
             .legend(egui_plot::Legend::default())
             .show(ui, |p| {
                 p.line(Line::new("unshot fraction", log(1)));
