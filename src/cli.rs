@@ -4,7 +4,7 @@
 //! the file and the problem, and exit status 1.
 
 use crate::export::{baked_glb, write_atomic};
-use crate::mesh::{DisplayMesh, MeshSettings, Reconstruction};
+use crate::mesh::{AdaptiveSettings, DisplayMesh, MeshSettings, Reconstruction};
 use crate::pipeline::Prepared;
 use crate::scene::{Scene, builtin};
 use crate::solver::form_factor::FormFactorSettings;
@@ -189,9 +189,10 @@ fn parse_camera(s: &str) -> Result<(f32, f32, f32), String> {
 /// Options shared by every command that solves.
 #[derive(Args, Debug, Clone)]
 pub struct SolveOptions {
-    /// progressive, jacobi, gauss-seidel or direct.
-    #[arg(long, default_value = "progressive")]
-    pub method: Method,
+    /// progressive (default), jacobi, gauss-seidel, stochastic-jacobi or direct. The viewer,
+    /// when none is given, takes stochastic-jacobi for scenes over 100,000 elements.
+    #[arg(long)]
+    pub method: Option<Method>,
     /// Stop when the unshot fraction (progressive) or relative residual falls below this.
     #[arg(long, default_value_t = 1e-3)]
     pub tolerance: f64,
@@ -219,6 +220,14 @@ pub struct SolveOptions {
     /// Shadow rays for an element–patch pair in penumbra (first rays disagree).
     #[arg(long, default_value_t = FormFactorSettings::default().penumbra_rays)]
     pub penumbra_rays: u32,
+    /// Adaptive subdivision after the solve converges: split elements whose log-luminance
+    /// contrast to a neighbour exceeds this (0.2 ≈ a 22 % step); 0 turns it off.
+    #[arg(long, default_value_t = AdaptiveSettings::default().threshold)]
+    pub adaptive_threshold: f32,
+    /// Smallest element adaptive subdivision may make, metres (default: an eighth of the
+    /// starting element size).
+    #[arg(long)]
+    pub min_element_size: Option<f64>,
 }
 
 fn parse_rgb(s: &str) -> Result<Vec3, String> {
@@ -263,13 +272,18 @@ impl SolveOptions {
 
     fn solver_settings(&self) -> SolverSettings {
         let mut s = SolverSettings {
-            method: self.method,
+            method: self.method.unwrap_or(Method::Progressive),
             tolerance: self.tolerance,
             ..Default::default()
         };
         s.form_factors.max_rays = self.max_rays.max(1);
         s.form_factors.penumbra_rays = self.penumbra_rays.max(1);
         s.form_factors.min_rays = self.min_rays.clamp(1, s.form_factors.max_rays);
+        s.adaptive = (self.adaptive_threshold > 0.0).then(|| AdaptiveSettings {
+            threshold: self.adaptive_threshold,
+            min_size: self.min_element_size.filter(|m| *m > 0.0),
+            ..Default::default()
+        });
         s
     }
 }
@@ -408,6 +422,7 @@ pub fn run(cli: Cli) -> Result<()> {
             frame_stats,
             wireframe,
             orbit,
+            auto_method: options.method.is_none(),
         }),
         Command::Render {
             scene,
@@ -419,7 +434,14 @@ pub fn run(cli: Cli) -> Result<()> {
             let prepared = prepare(&s, &options, quiet);
             let mut solver = prepared.solver(options.solver_settings())?;
             run_with_progress(&mut solver, options.time_limit, quiet)?;
-            render(&prepared, &solver.radiosity(), &view, &out, quiet)
+            render(
+                solver.mesh(),
+                &prepared.bvh,
+                &solver.radiosity(),
+                &view,
+                &out,
+                quiet,
+            )
         }
         Command::Solve {
             scene,
@@ -438,7 +460,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 s.triangle_count(),
                 st.patches,
                 st.elements,
-                options.method,
+                solver.settings().method,
                 st.seconds,
                 st.iterations,
                 st.rays,
@@ -462,11 +484,12 @@ pub fn run(cli: Cli) -> Result<()> {
                 write_atomic(&path, serde_json::to_string_pretty(&file)?.as_bytes())?;
             }
             if let Some(path) = out {
-                let values = prepared
-                    .mesh
+                // The solver's mesh: adaptive refinement may have replaced the prepared one.
+                let mesh = solver.mesh();
+                let values = mesh
                     .display
-                    .vertex_values(&prepared.mesh.elements, &solver.radiosity());
-                write_atomic(&path, &baked_glb(&s, &prepared.mesh, &values))?;
+                    .vertex_values(&mesh.elements, &solver.radiosity());
+                write_atomic(&path, &baked_glb(&s, mesh, &values))?;
             }
             Ok(())
         }
@@ -482,7 +505,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let prepared = prepare(&s, &options, quiet);
             let mut solver = prepared.solver(options.solver_settings())?;
             run_with_progress(&mut solver, options.time_limit, quiet)?;
-            let values = probe_values(&prepared, &solver.radiosity(), &pts, reconstruction);
+            let values = probe_values(solver.mesh(), &solver.radiosity(), &pts, reconstruction);
             let mut csv = String::from("x,y,z,r,g,b\n");
             for ((p, _), v) in pts.iter().zip(&values) {
                 csv += &format!("{},{},{},{},{},{}\n", p.x, p.y, p.z, v.x, v.y, v.z);
@@ -516,17 +539,17 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Renders `radiosity` on `prepared`'s mesh to the PNG `out` with the viewer's renderer.
+/// Renders `radiosity` on `mesh` to the PNG `out` with the viewer's renderer.
 fn render(
-    prepared: &Prepared,
+    mesh: &crate::mesh::Mesh,
+    bvh: &crate::accel::Bvh,
     radiosity: &[Vec3],
     view: &RenderOptions,
     out: &Path,
     quiet: bool,
 ) -> Result<()> {
     use crate::view::render::{Display, render_image};
-    let mesh = &prepared.mesh;
-    let mut camera = crate::view::default_camera(mesh, &prepared.bvh);
+    let mut camera = crate::view::default_camera(mesh, bvh);
     if let Some((yaw, pitch, zoom)) = view.camera {
         camera.yaw = yaw.to_radians();
         camera.pitch = pitch.clamp(-89.0, 89.0).to_radians();
@@ -621,12 +644,11 @@ pub fn read_table(path: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>> {
 /// Reconstructed radiosity at world points with outward normals (zero where no element
 /// faces that way).
 pub fn probe_values(
-    prepared: &Prepared,
+    mesh: &crate::mesh::Mesh,
     radiosity: &[Vec3],
     points: &[(DVec3, DVec3)],
     mode: Reconstruction,
 ) -> Vec<Vec3> {
-    let mesh = &prepared.mesh;
     let vertex_values = mesh.display.vertex_values(&mesh.elements, radiosity);
     points
         .iter()

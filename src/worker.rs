@@ -37,6 +37,9 @@ pub enum Command {
         source: Source,
         mesh: MeshSettings,
         solver: SolverSettings,
+        /// Let the worker choose the method by size once the scene is meshed: stochastic
+        /// Jacobi above [`AUTO_STOCHASTIC_ELEMENTS`] elements, `solver.method` below.
+        auto_method: bool,
     },
     /// New solver settings for the current job: the solve restarts on the same mesh.
     SetSettings(SolverSettings),
@@ -101,6 +104,12 @@ pub enum Event {
         vertex: Arc<[Vec3]>,
         stats: Stats,
     },
+    /// Adaptive refinement replaced the mesh (same scene, finer elements); the next
+    /// snapshots are for it.
+    Refined {
+        job: u64,
+        mesh: Arc<Mesh>,
+    },
     /// An export finished: the path written, or why not.
     Exported {
         job: u64,
@@ -124,6 +133,7 @@ impl Event {
             | Event::Snapshot { job, .. }
             | Event::Converged { job, .. }
             | Event::Exported { job, .. }
+            | Event::Refined { job, .. }
             | Event::Failed { job, .. } => *job,
         }
     }
@@ -135,6 +145,11 @@ pub struct ObjectInfo {
     pub name: String,
     pub world_from_local: DMat4,
 }
+
+/// Above this many elements an automatic method choice is stochastic Jacobi: on a sky-lit
+/// Sponza (441k elements) it shoots 90 % of the light in 8 s where progressive refinement
+/// needs 117 s (README, measured numbers), because the sky's energy lands everywhere at once.
+pub const AUTO_STOCHASTIC_ELEMENTS: usize = 100_000;
 
 /// The UI's end of the worker.
 pub struct Worker {
@@ -158,7 +173,21 @@ impl Worker {
         let shared = Arc::clone(&cancel);
         let thread = std::thread::Builder::new()
             .name("radiosity-solver".into())
-            .spawn(move || run(command_rx, event_tx, shared, wake))
+            .spawn(move || {
+                // The solver's parallel work runs in its own pool, one thread short of the
+                // machine, so the UI thread always has a core: frames stay smooth while a
+                // big scene solves (the results do not depend on the thread count).
+                let threads = std::thread::available_parallelism()
+                    .map_or(1, |n| n.get().saturating_sub(1).max(1));
+                match rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("radiosity-solver-{i}"))
+                    .build()
+                {
+                    Ok(pool) => pool.install(|| run(command_rx, event_tx, shared, wake)),
+                    Err(_) => run(command_rx, event_tx, shared, wake),
+                }
+            })
             .expect("spawning the solver thread");
         Worker {
             commands,
@@ -209,6 +238,8 @@ struct Job {
     mesh_settings: MeshSettings,
     ambient: bool,
     snapshot_cost: Duration,
+    /// The solver's mesh version last sent to the UI.
+    mesh_version: u64,
     prepared: Prepared,
     solver: Solver,
     version: u64,
@@ -253,11 +284,12 @@ fn run(
                     source,
                     mesh,
                     solver,
+                    auto_method,
                 } => {
                     job = None; // free the old scene before loading the next
                     let flag = cancel.lock().unwrap_or_else(|e| e.into_inner()).clone();
                     let result = catch_unwind(AssertUnwindSafe(|| {
-                        load(id, &source, &mesh, solver, &flag, &send)
+                        load(id, &source, &mesh, solver, auto_method, &flag, &send)
                     }));
                     match result {
                         Ok(Ok(Some(j))) => job = Some(j),
@@ -336,6 +368,14 @@ fn run(
         let Some(j) = &mut job else { continue };
         let flag = cancel.lock().unwrap_or_else(|e| e.into_inner()).clone();
         let outcome = catch_unwind(AssertUnwindSafe(|| j.solver.step(&flag)));
+        if j.solver.mesh_version() != j.mesh_version {
+            j.mesh_version = j.solver.mesh_version();
+            j.last_snapshot = None;
+            send(Event::Refined {
+                job: j.id,
+                mesh: Arc::clone(j.solver.mesh()),
+            });
+        }
         match outcome {
             Ok(Ok(StepOutcome::Working)) => {
                 let interval = SNAPSHOT_INTERVAL.max(j.snapshot_cost * 4);
@@ -376,7 +416,15 @@ fn run(
 fn restart(j: &mut Job, settings: SolverSettings, send: &impl Fn(Event)) {
     match j.prepared.solver(settings) {
         Ok(solver) => {
+            // A fresh solve starts on the unrefined mesh: show it.
+            if j.mesh_version != 0 {
+                send(Event::Refined {
+                    job: j.id,
+                    mesh: Arc::clone(solver.mesh()),
+                });
+            }
             j.solver = solver;
+            j.mesh_version = 0;
             j.done = false;
             j.last_snapshot = None;
         }
@@ -489,6 +537,7 @@ fn move_object(
             send(loaded_event(j.id, &j.scene, &prepared));
             j.prepared = prepared;
             j.solver = solver;
+            j.mesh_version = 0;
             j.done = false;
             j.last_snapshot = None;
             send(Event::Progress {
@@ -549,7 +598,8 @@ fn load(
     id: u64,
     source: &Source,
     mesh: &MeshSettings,
-    solver: SolverSettings,
+    mut solver: SolverSettings,
+    auto_method: bool,
     cancel: &AtomicBool,
     send: &impl Fn(Event),
 ) -> Result<Option<Job>, String> {
@@ -569,6 +619,9 @@ fn load(
     if cancel.load(Ordering::Relaxed) {
         return Ok(None);
     }
+    if auto_method && prepared.mesh.elements.len() > AUTO_STOCHASTIC_ELEMENTS {
+        solver.method = crate::solver::Method::StochasticJacobi;
+    }
     let solver = prepared.solver(solver).map_err(|e| e.to_string())?;
     send(loaded_event(id, &scene, &prepared));
     send(Event::Progress {
@@ -582,6 +635,7 @@ fn load(
         mesh_settings: mesh.clone(),
         ambient: true,
         snapshot_cost: Duration::ZERO,
+        mesh_version: 0,
         prepared,
         solver,
         version: 0,

@@ -14,7 +14,7 @@ use egui_kittest::kittest::Queryable;
 use glam::Vec3;
 use radiosity::mesh::MeshSettings;
 use radiosity::solver::SolverSettings;
-use radiosity::view::app::{App, Options};
+use radiosity::view::app::{App, Options, Placement};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -90,7 +90,10 @@ fn options(scene: &str) -> Options {
             max_elements: Some(1500),
             ..Default::default()
         },
-        solver: SolverSettings::default(),
+        solver: SolverSettings {
+            adaptive: Some(radiosity::mesh::AdaptiveSettings::default()),
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
@@ -217,6 +220,50 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         .unwrap()
         .save(screenshots().join("kittest_edited.png"))
         .unwrap();
+
+    // Moving the short block 12 cm towards the green wall: the scene is meshed again, the
+    // block's patches move by exactly that, the solve converges again; Ctrl+Z puts it back.
+    let short = 2;
+    let centroid = |a: &App| -> glam::DVec3 {
+        let m = a.mesh().unwrap();
+        let ps: Vec<_> = m.patches.iter().filter(|p| p.object == short).collect();
+        ps.iter()
+            .map(|p| p.centroid().as_dvec3())
+            .sum::<glam::DVec3>()
+            / ps.len() as f64
+            + m.origin
+    };
+    let start = centroid(h.state());
+    let old_mesh = h.state().mesh().unwrap().clone();
+    h.state_mut().place(
+        short,
+        Placement {
+            translate: [-0.12, 0.0, 0.0],
+            ..Default::default()
+        },
+    );
+    assert!(step_until(&mut h, 120.0, |a| a
+        .mesh()
+        .is_some_and(|m| !std::sync::Arc::ptr_eq(m, &old_mesh))
+        && a.converged()));
+    let moved = centroid(h.state()) - start;
+    assert!(
+        (moved - glam::DVec3::new(-0.12, 0.0, 0.0)).length() < 1e-4,
+        "moved {moved}"
+    );
+    h.step();
+    h.render()
+        .unwrap()
+        .save(screenshots().join("kittest_moved.png"))
+        .unwrap();
+    let moved_mesh = h.state().mesh().unwrap().clone();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    assert!(step_until(&mut h, 120.0, |a| a
+        .mesh()
+        .is_some_and(|m| !std::sync::Arc::ptr_eq(m, &moved_mesh))
+        && a.converged()));
+    let back = centroid(h.state()) - start;
+    assert!(back.length() < 1e-4, "undo left the block at {back}");
 }
 
 #[test]

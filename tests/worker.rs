@@ -25,6 +25,7 @@ fn load(job: u64, source: &str, solver: SolverSettings) -> Command {
         source: Source(source.into()),
         mesh: mesh(),
         solver,
+        auto_method: false,
     }
 }
 

@@ -124,7 +124,7 @@ pub fn convergence(
     let errors = |values: &[Vec3]| match &reference {
         Reference::Elements(r, _) => element_errors(values, r, &areas),
         Reference::Points(p, r) => point_errors(
-            &probe_values(&prepared, values, p, Reconstruction::Gouraud),
+            &probe_values(&prepared.mesh, values, p, Reconstruction::Gouraud),
             r,
         ),
     };

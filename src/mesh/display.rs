@@ -42,6 +42,11 @@ impl std::str::FromStr for Reconstruction {
 pub struct DisplayMesh {
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
+    /// T-vertices left by adaptive subdivision: vertex `v` lies at the midpoint of the edge
+    /// (`a`, `b`) of a coarser element that does not use it. Its Gouraud value is taken
+    /// from that edge (the mean of `a` and `b`), so the shading has no crack there.
+    /// Ordered coarse edges first, so chains of T-vertices resolve in one pass.
+    pub hanging: Vec<[u32; 3]>,
 }
 
 impl DisplayMesh {
@@ -80,6 +85,34 @@ impl DisplayMesh {
                 };
             }
         }
+        // T-vertices: a vertex of the same smooth surface at the midpoint of an element's
+        // edge is not one of its corners, so it hangs on that edge.
+        let mut hanging: Vec<(f32, [u32; 3])> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for e in elements.iter() {
+            let patch = &patches[e.patch as usize];
+            for k in 0..3 {
+                let (a, b) = (e.corners[k], e.corners[(k + 1) % 3]);
+                let m = (e.verts[k] + e.verts[(k + 1) % 3]) * 0.5;
+                let q = (m / quantum).round();
+                let key = (
+                    [q.x as i64, q.y as i64, q.z as i64],
+                    patch.material,
+                    patch.back,
+                );
+                if let Some(slots) = welded.get(&key)
+                    && let Some(&v) = slots
+                        .iter()
+                        .find(|&&v| mesh.normals[v as usize].dot(e.normal) >= cos_smooth)
+                    && seen.insert(v)
+                {
+                    let len = (e.verts[k] - e.verts[(k + 1) % 3]).length();
+                    hanging.push((len, [v, a, b]));
+                }
+            }
+        }
+        hanging.sort_by(|x, y| y.0.total_cmp(&x.0));
+        mesh.hanging = hanging.into_iter().map(|h| h.1).collect();
         mesh
     }
 
@@ -94,10 +127,15 @@ impl DisplayMesh {
                 weight[c as usize] += e.area;
             }
         }
-        sum.iter()
+        let mut values: Vec<Vec3> = sum
+            .iter()
             .zip(&weight)
             .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
-            .collect()
+            .collect();
+        for &[v, a, b] in &self.hanging {
+            values[v as usize] = (values[a as usize] + values[b as usize]) * 0.5;
+        }
+        values
     }
 
     /// The reconstructed value at barycentric point `bary` of element `e`, given element

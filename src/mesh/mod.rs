@@ -14,8 +14,10 @@
 //! Double-sided materials give two patches per piece of surface, one per side, each with its
 //! own radiosity; single-sided ones give one, on the front (counter-clockwise) side.
 
+mod adaptive;
 mod display;
 
+pub use adaptive::{AdaptiveSettings, Moved};
 pub use display::{DisplayMesh, Reconstruction};
 
 use crate::scene::Scene;

@@ -146,6 +146,18 @@ pub fn disk_approximation(p: Vec3, n: Vec3, q: Vec3, nq: Vec3, area: f32) -> f32
 
 /// A small deterministic hash (SplitMix64 finaliser, Steele et al. 2014) so that sample
 /// positions depend only on the pair being sampled, never on thread scheduling.
+/// A seed for an element's random numbers from its geometry, not its index: an element
+/// kept through an adaptive refinement (which renumbers elements) draws the same rays.
+pub fn element_seed(e: &crate::mesh::Element) -> u64 {
+    let mut h = 0x9e37_79b9_7f4a_7c15u64;
+    for v in e.verts {
+        for c in v.to_array() {
+            h = hash(h ^ c.to_bits() as u64);
+        }
+    }
+    h
+}
+
 pub fn hash(mut x: u64) -> u64 {
     x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
     x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -232,7 +244,7 @@ pub fn element_to_patch(
     if bvh.shaft_clear(from, &base, skip, eps * 0.1) {
         return (f, 0);
     }
-    let seed = hash(((element as u64) << 32) ^ patch as u64);
+    let seed = hash(element_seed(e) ^ patch as u64);
     // One shadow ray per stratum. Where the rays disagree, the pair is sampled again with
     // `penumbra_rays` strata and each stratum's transmittance is weighted by that
     // stratum's own exact form factor (the strata tile the patch, so the weights add up to

@@ -32,7 +32,7 @@ pub mod lighting;
 pub mod stochastic;
 
 use crate::accel::Bvh;
-use crate::mesh::{Mesh, sanitize};
+use crate::mesh::{AdaptiveSettings, Mesh, Moved, sanitize};
 use form_factor::{FormFactorSettings, element_to_patch};
 use glam::{DVec3, Vec3};
 use lighting::ExternalLight;
@@ -105,6 +105,9 @@ pub struct SolverSettings {
     pub cache_bytes: usize,
     /// Rays per stochastic Jacobi iteration; `None` is 16 per element, at least 2¹⁸.
     pub stochastic_rays: Option<usize>,
+    /// A-posteriori adaptive subdivision after each converged solve (`None`: the mesh
+    /// stays as built). The command line and the viewer turn it on by default.
+    pub adaptive: Option<AdaptiveSettings>,
 }
 
 impl Default for SolverSettings {
@@ -118,6 +121,7 @@ impl Default for SolverSettings {
             step_budget: Duration::from_millis(30),
             cache_bytes: 1 << 30,
             stochastic_rays: None,
+            adaptive: None,
         }
     }
 }
@@ -241,11 +245,29 @@ pub struct Solver {
     /// Largest source power seen (the scale for the unshot fraction when an edit turns the
     /// lights off and the source power drops to zero).
     power_scale: f64,
+    /// Progressive: everything each patch has shot so far, Σ ΔB̄_p. New elements from a
+    /// refinement gather from it, so refining loses no light already shot.
+    shot_total: Vec<DVec3>,
+    /// Refinement passes done, and a counter that changes whenever the mesh does.
+    refine_passes: u32,
+    mesh_version: u64,
     /// The stochastic iteration under way.
     pending: Option<Pending>,
     stats: Stats,
     shot_power: f64,
     captured_power: f64,
+}
+
+/// Per-element values carried through a refinement: children start from their parent's.
+fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Vec<T> {
+    let mut out = vec![T::default(); n];
+    for (old, m) in moved.iter().enumerate() {
+        match m {
+            Moved::Kept(k) => out[*k as usize] = v[old],
+            Moved::Split(kids) => kids.iter().for_each(|k| out[*k as usize] = v[old]),
+        }
+    }
+    out
 }
 
 fn sum3(v: Vec3) -> f64 {
@@ -300,6 +322,9 @@ impl Solver {
             external_in: vec![Vec3::ZERO; n],
             gathered: vec![DVec3::ZERO; n],
             power_scale: 0.0,
+            shot_total: vec![DVec3::ZERO; m],
+            refine_passes: 0,
+            mesh_version: 0,
             source: vec![Vec3::ZERO; n],
             radiosity: vec![DVec3::ZERO; n],
             unshot: vec![DVec3::ZERO; n],
@@ -324,9 +349,14 @@ impl Solver {
         })
     }
 
-    /// The mesh being solved.
+    /// The mesh being solved (replaced by each adaptive refinement).
     pub fn mesh(&self) -> &Arc<Mesh> {
         &self.mesh
+    }
+
+    /// Changes whenever adaptive refinement replaces the mesh.
+    pub fn mesh_version(&self) -> u64 {
+        self.mesh_version
     }
 
     /// Current radiosity B per element (W/m² per channel).
@@ -394,6 +424,174 @@ impl Solver {
             .zip(&self.reflectance)
             .map(|(b, rho)| b.as_vec3() + *rho * ambient)
             .collect()
+    }
+
+    /// One pass of a-posteriori adaptive subdivision on a converged solve (see
+    /// [`crate::mesh::AdaptiveSettings`]); returns whether the mesh changed, in which case
+    /// the solve goes on from where it was.
+    ///
+    /// New elements are re-evaluated, not interpolated: progressive refinement gathers
+    /// each child's radiosity from everything already shot (H_c = Σ_p F_cp · Σ ΔB̄_p, the
+    /// patches' shot totals), and the child's unshot radiosity keeps the parent's plus the
+    /// difference, so for every patch Σ A_i (B_i − ΔB_i) still equals what it has shot:
+    /// refinement neither creates nor loses energy. The gathering methods compute the
+    /// children's rows and sweep again from the parent's values; the direct method solves
+    /// again; stochastic Jacobi carries the parent's values.
+    fn refine(&mut self) -> bool {
+        let Some(a) = self.settings.adaptive.clone() else {
+            return false;
+        };
+        if self.refine_passes >= a.max_passes || self.stats.source_power <= 0.0 {
+            return false;
+        }
+        let min_size = a.min_size.unwrap_or(self.mesh.element_size / 8.0);
+        let values = self.radiosity();
+        let marked = self
+            .mesh
+            .mark_for_refinement(&values, a.threshold, min_size);
+        let count = marked.iter().filter(|m| **m).count();
+        if count == 0 || self.mesh.elements.len() + 3 * count > a.max_elements {
+            return false;
+        }
+        self.refine_passes += 1;
+        let mut mesh = (*self.mesh).clone();
+        let moved = mesh.refine(&marked);
+        let mesh = Arc::new(mesh);
+        let n = mesh.elements.len();
+        self.radiosity = remap(&self.radiosity, &moved, n);
+        self.unshot = remap(&self.unshot, &moved, n);
+        self.gathered = remap(&self.gathered, &moved, n);
+        self.source = remap(&self.source, &moved, n);
+        self.reflectance = remap(&self.reflectance, &moved, n);
+        self.emission = remap(&self.emission, &moved, n);
+        self.external_in = remap(&self.external_in, &moved, n);
+        let children: Vec<u32> = moved
+            .iter()
+            .flat_map(|m| match m {
+                Moved::Split(kids) => kids.to_vec(),
+                Moved::Kept(_) => Vec::new(),
+            })
+            .collect();
+        let had_rows = !self.rows.is_empty();
+        let mut old_rows = std::mem::take(&mut self.rows);
+        self.mesh = mesh;
+        self.pending = None;
+        let old_columns = std::mem::replace(&mut self.columns, vec![None; self.mesh.patches.len()]);
+        self.cache_used = 0;
+        // Re-evaluate the children: external light, and (progressive) what has been shot.
+        let mesh = Arc::clone(&self.mesh);
+        let (bvh, external, ff) = (&self.bvh, &self.external, self.settings.form_factors);
+        let has_external = !external.lights.is_empty() || external.environment.is_some();
+        let progressive = self.settings.method == Method::Progressive;
+        let shot_total = &self.shot_total;
+        let needed = |q: usize| had_rows || (progressive && shot_total[q] != DVec3::ZERO);
+        // Per child: external irradiance factor h, gathered H, its F to the patches needed,
+        // rays cast.
+        type Evaluated = (Vec3, DVec3, Vec<(u32, f32)>, u64);
+        let evaluated: Vec<Evaluated> = children
+            .par_iter()
+            .map(|&c| {
+                let c = c as usize;
+                let e = &mesh.elements[c];
+                let p = &mesh.patches[e.patch as usize];
+                let (h, mut rays) = if has_external {
+                    lighting::irradiance(
+                        &mesh,
+                        bvh,
+                        external,
+                        e.centroid(),
+                        e.normal,
+                        p.scene_triangle,
+                        form_factor::element_seed(e),
+                    )
+                } else {
+                    (Vec3::ZERO, 0)
+                };
+                let mut gathered = DVec3::ZERO;
+                let mut row = Vec::new();
+                for (q, total) in shot_total.iter().enumerate() {
+                    if !needed(q) {
+                        continue;
+                    }
+                    let (f, r) = element_to_patch(&mesh, bvh, c, q, &ff);
+                    rays += r;
+                    if f > 0.0 {
+                        gathered += *total * f as f64;
+                        row.push((q as u32, f));
+                    }
+                }
+                let h = if h.is_finite() { h } else { Vec3::ZERO };
+                (h, gathered, row, rays as u64)
+            })
+            .collect();
+        if had_rows {
+            let mut rows: Vec<Sparse> = vec![Arc::from(Vec::new()); n];
+            for (old, m) in moved.iter().enumerate() {
+                if let Moved::Kept(k) = m {
+                    rows[*k as usize] =
+                        std::mem::replace(&mut old_rows[old], Arc::from(Vec::new()));
+                }
+            }
+            self.rows = rows;
+        }
+        // Cached form-factor columns survive: kept elements keep their F (their rays are
+        // seeded by geometry, not index), and the children's F to every patch that has shot
+        // were just computed. Columns of patches not yet shot are dropped (computed again
+        // when they shoot).
+        let mut child_entries: Vec<Vec<(u32, f32)>> = vec![Vec::new(); self.mesh.patches.len()];
+        for (&c, (_, _, row, _)) in children.iter().zip(&evaluated) {
+            for &(q, f) in row {
+                child_entries[q as usize].push((c, f));
+            }
+        }
+        for (q, col) in old_columns.into_iter().enumerate() {
+            let Some(col) = col else { continue };
+            if !needed(q) {
+                continue;
+            }
+            let mut new: Vec<(u32, f32)> = col
+                .iter()
+                .filter_map(|&(i, f)| match moved[i as usize] {
+                    Moved::Kept(k) => Some((k, f)),
+                    Moved::Split(_) => None,
+                })
+                .collect();
+            new.extend_from_slice(&child_entries[q]);
+            new.sort_unstable_by_key(|e| e.0);
+            let bytes = new.len() * std::mem::size_of::<(u32, f32)>();
+            if self.cache_used + bytes <= self.settings.cache_bytes {
+                self.cache_used += bytes;
+                self.columns[q] = Some(Arc::from(new));
+            }
+        }
+        for (&c, (h, gathered, row, rays)) in children.iter().zip(evaluated) {
+            let c = c as usize;
+            self.stats.rays += rays;
+            let s = self.emission[c] + self.reflectance[c] * h;
+            self.external_in[c] = h;
+            self.source[c] = s;
+            if had_rows {
+                self.rows[c] = Arc::from(row);
+            }
+            if progressive {
+                let b = s.as_dvec3() + self.reflectance[c].as_dvec3() * gathered;
+                self.unshot[c] += b - self.radiosity[c];
+                self.radiosity[c] = b;
+                self.gathered[c] = gathered;
+            }
+        }
+        self.stats.elements = n;
+        self.stats.source_power = self
+            .source
+            .iter()
+            .zip(&self.mesh.elements)
+            .map(|(s, e)| sum3(*s) * e.area as f64)
+            .sum();
+        self.power_scale = self.power_scale.max(self.stats.source_power);
+        self.stats.converged = false;
+        self.mesh_version += 1;
+        self.phase = Phase::Iterating;
+        true
     }
 
     /// Changes the reflectance and emitted radiosity of some patches without restarting:
@@ -492,9 +690,14 @@ impl Solver {
                     Method::StochasticJacobi => self.stochastic_chunk(),
                     Method::Direct => self.direct_solve()?,
                 },
-                Phase::Done => break StepOutcome::Converged,
+                Phase::Done => {
+                    if self.refine() {
+                        continue;
+                    }
+                    break StepOutcome::Converged;
+                }
             }
-            if self.phase == Phase::Done {
+            if self.phase == Phase::Done && !self.refine() {
                 break StepOutcome::Converged;
             }
             if Instant::now() >= deadline {
@@ -547,7 +750,7 @@ impl Solver {
                         e.centroid(),
                         e.normal,
                         p.scene_triangle,
-                        form_factor::hash(i as u64),
+                        form_factor::element_seed(e),
                     )
                 } else {
                     (Vec3::ZERO, 0)
@@ -715,6 +918,7 @@ impl Solver {
             self.unshot[i as usize] = DVec3::ZERO;
         }
         let shot = shot / p.area as f64;
+        self.shot_total[best] += shot;
         let column = self.column(best);
         let mut captured = 0.0f64;
         for &(i, f) in column.iter() {

@@ -39,6 +39,9 @@ pub struct Options {
     pub wireframe: bool,
     /// Turn the camera a little every frame (to measure frame times while orbiting).
     pub orbit: bool,
+    /// Let the worker pick stochastic Jacobi for very large scenes (the method was not
+    /// chosen on the command line).
+    pub auto_method: bool,
 }
 
 impl Default for Options {
@@ -46,12 +49,16 @@ impl Default for Options {
         Options {
             scene: "builtin:cornell".into(),
             mesh: MeshSettings::default(),
-            solver: SolverSettings::default(),
+            solver: SolverSettings {
+                adaptive: Some(crate::mesh::AdaptiveSettings::default()),
+                ..Default::default()
+            },
             screenshot: None,
             screenshot_after: 3.0,
             frame_stats: None,
             wireframe: false,
             orbit: false,
+            auto_method: true,
         }
     }
 }
@@ -162,7 +169,9 @@ pub struct App {
     ambient: bool,
     selected: Option<u32>,
     material: Option<u32>,
-    edit_sent: Option<Instant>,
+    /// When the last material edit was sent, and the version of the first snapshot that
+    /// carries it once it has arrived.
+    edit_sent: Option<(Instant, Option<u64>)>,
     edit_latency: Option<Duration>,
     recent: Vec<String>,
     prompt: Option<(PathAction, String)>,
@@ -176,6 +185,7 @@ pub struct App {
     draft: Option<(u32, Placement)>,
     viewport_rect: Option<egui::Rect>,
     orbit: bool,
+    auto_method: bool,
     /// What the 3D target shows now: it is drawn again only when this changes.
     drawn: Option<(Camera, Display, u64, [u32; 2])>,
     frame_stats: Option<PathBuf>,
@@ -209,6 +219,20 @@ fn percentile(v: &mut [f32], q: f32) -> f32 {
     }
     v.sort_by(|a, b| a.total_cmp(b));
     v[((v.len() - 1) as f32 * q).round() as usize]
+}
+
+/// The turbo colour map (Mikhailov 2019), the same polynomial as the shader's; sRGB.
+fn turbo(t: f32) -> [f32; 3] {
+    let x = t.clamp(0.0, 1.0);
+    let r = 0.135_721_38
+        + x * (4.615_392_6
+            + x * (-42.660_32 + x * (132.131_08 + x * (-152.942_4 + x * 59.286_38))));
+    let g = 0.091_402_61
+        + x * (2.194_188_4
+            + x * (4.842_966_6 + x * (-14.185_033 + x * (4.277_298_6 + x * 2.829_566))));
+    let b = 0.106_673_3
+        + x * (12.641_946 + x * (-60.582_05 + x * (110.362_77 + x * (-89.903_11 + x * 27.348_25))));
+    [r.clamp(0.0, 1.0), g.clamp(0.0, 1.0), b.clamp(0.0, 1.0)]
 }
 
 fn linear_to_srgb(x: f32) -> f32 {
@@ -291,6 +315,7 @@ impl App {
             draft: None,
             viewport_rect: None,
             orbit: options.orbit,
+            auto_method: options.auto_method,
             drawn: None,
             frame_stats: options.frame_stats.clone(),
             solve_started: None,
@@ -348,7 +373,8 @@ impl App {
             .as_ref()
             .map(|s| (s.version, Arc::clone(&s.radiosity)))
     }
-    /// Time from the last material edit to the first snapshot that showed it.
+    /// Time from the last material edit to the frame that first showed it (its snapshot
+    /// uploaded and drawn).
     pub fn edit_latency(&self) -> Option<Duration> {
         self.edit_latency
     }
@@ -394,6 +420,7 @@ impl App {
             source: Source(source.clone()),
             mesh: self.mesh_settings.clone(),
             solver: self.solver_settings.clone(),
+            auto_method: self.auto_method,
         });
         if !self.ambient {
             self.worker.send(Command::SetAmbient(false));
@@ -419,7 +446,7 @@ impl App {
                 reflectance,
                 emission,
             });
-            self.edit_sent = Some(Instant::now());
+            self.edit_sent = Some((Instant::now(), None));
             self.converged = false;
         }
     }
@@ -541,10 +568,18 @@ impl App {
                     stats,
                     ..
                 } => {
-                    if let Some(t) = self.edit_sent.take() {
-                        self.edit_latency = Some(t.elapsed());
+                    if let Some((_, v @ None)) = &mut self.edit_sent {
+                        *v = Some(version);
                     }
                     self.record(&stats);
+                    if let Some(m) = stats.method
+                        && m != self.solver_settings.method
+                        && self.auto_method
+                    {
+                        // The worker chose the method by size: show it.
+                        self.solver_settings.method = m;
+                        self.status = format!("large scene: solving with {m}");
+                    }
                     self.stats = stats;
                     self.converged = self.stats.converged;
                     if self.snapshot.as_ref().is_none_or(|s| version > s.version) {
@@ -564,6 +599,15 @@ impl App {
                 Event::Failed { error, .. } => {
                     self.error = Some(error);
                     self.stage = None;
+                }
+                Event::Refined { mesh, .. } => {
+                    if let Some(g) = &mut self.gpu {
+                        g.mesh = Some(g.renderer.upload(&g.state.device, &mesh));
+                    }
+                    self.uploaded = 0;
+                    self.snapshot = None;
+                    self.status = format!("refined: {} elements", mesh.elements.len());
+                    self.mesh = Some(mesh);
                 }
                 Event::Exported { result, .. } => match result {
                     Ok(p) => self.status = format!("exported {}", p.display()),
@@ -601,7 +645,10 @@ impl App {
         if s.version == self.uploaded {
             return;
         }
-        if let Some(t) = self.last_upload
+        // A fresh GPU mesh has nothing to show: upload at once. Otherwise at most a quarter
+        // of the time goes to uploads.
+        if self.uploaded != 0
+            && let Some(t) = self.last_upload
             && t.elapsed() < self.upload_cost * 3
         {
             return;
@@ -611,6 +658,13 @@ impl App {
         let start = Instant::now();
         if gm.set_values(&g.state.queue, &s.radiosity, &s.vertex) {
             self.uploaded = s.version;
+            // The edit's first snapshot is on the GPU and is drawn this frame.
+            if let Some((t, Some(v))) = self.edit_sent
+                && self.uploaded >= v
+            {
+                self.edit_latency = Some(t.elapsed());
+                self.edit_sent = None;
+            }
         }
         self.upload_cost = start.elapsed();
         self.last_upload = Some(Instant::now());
@@ -1108,8 +1162,29 @@ impl App {
                 }
             });
         if d.false_colour {
+            // The legend: the shader's colour map from the low to the high end.
+            let (rect, _) = ui.allocate_exact_size(egui::vec2(220.0, 12.0), egui::Sense::hover());
+            let n = 64;
+            for k in 0..n {
+                let t0 = k as f32 / n as f32;
+                let x0 = rect.left() + rect.width() * t0;
+                let x1 = rect.left() + rect.width() * (k + 1) as f32 / n as f32;
+                let [r, g, b] = turbo(t0 + 0.5 / n as f32);
+                ui.painter().rect_filled(
+                    egui::Rect::from_min_max(
+                        egui::pos2(x0, rect.top()),
+                        egui::pos2(x1, rect.bottom()),
+                    ),
+                    0.0,
+                    egui::Color32::from_rgb(
+                        (r * 255.0) as u8,
+                        (g * 255.0) as u8,
+                        (b * 255.0) as u8,
+                    ),
+                );
+            }
             ui.label(format!(
-                "false colour: 10^{:.1} … 10^{:.1} W/m²",
+                "radiosity 10^{:.1} to 10^{:.1} W/m² (log scale)",
                 d.log_range.0, d.log_range.1
             ));
         }
@@ -1255,6 +1330,37 @@ impl App {
             )
             .labelled_by(label.id);
         });
+        let mut adaptive = s.adaptive.is_some();
+        ui.checkbox(&mut adaptive, "Adaptive subdivision");
+        if adaptive != s.adaptive.is_some() {
+            s.adaptive = adaptive.then(crate::mesh::AdaptiveSettings::default);
+        }
+        if let Some(a) = &mut s.adaptive {
+            ui.horizontal(|ui| {
+                let label = ui.label("contrast threshold (ln)");
+                ui.add(
+                    egui::DragValue::new(&mut a.threshold)
+                        .range(0.01..=5.0)
+                        .speed(0.01),
+                )
+                .labelled_by(label.id);
+            });
+            ui.horizontal(|ui| {
+                let label = ui.label("min element size (m, 0 = auto)");
+                let mut m = a.min_size.unwrap_or(0.0);
+                ui.add(
+                    egui::DragValue::new(&mut m)
+                        .range(0.0..=1e6)
+                        .speed(0.001)
+                        .max_decimals(4),
+                )
+                .labelled_by(label.id);
+                a.min_size = (m > 0.0).then_some(m);
+            });
+        }
+        if s.method != self.solver_settings.method {
+            self.auto_method = false;
+        }
         if s != self.solver_settings {
             self.solver_settings = s.clone();
             self.worker.send(Command::SetSettings(s));
