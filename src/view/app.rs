@@ -188,6 +188,9 @@ pub struct App {
     auto_method: bool,
     /// What the 3D target shows now: it is drawn again only when this changes.
     drawn: Option<(Camera, Display, u64, [u32; 2])>,
+    /// When the last 3D draw started and what it cost (the interval to the next frame).
+    last_draw: Option<(Instant, Duration)>,
+    draw_started: Option<Instant>,
     frame_stats: Option<PathBuf>,
     solve_started: Option<Instant>,
     close_after_shot: bool,
@@ -317,6 +320,8 @@ impl App {
             orbit: options.orbit,
             auto_method: options.auto_method,
             drawn: None,
+            last_draw: None,
+            draw_started: None,
             frame_stats: options.frame_stats.clone(),
             solve_started: None,
             close_after_shot: options.screenshot.is_some(),
@@ -1473,10 +1478,29 @@ impl App {
             self.camera.yaw += 0.5f32.to_radians();
         }
         let key = (self.camera, self.display, self.uploaded, size);
+        // What a person did (camera, size, display choices) is drawn at once. What the
+        // solver did (a new snapshot, and the auto exposure that follows it) waits until
+        // the last draw has had 4× its cost to itself, so on a slow (software) renderer
+        // most frames stay cheap while a big scene streams.
+        let urgent = self.drawn.is_none_or(|(c, d, u, sz)| {
+            let mut d = d;
+            d.ev = self.display.ev;
+            d.log_range = self.display.log_range;
+            c != self.camera || sz != size || d != self.display || (u == 0) != (self.uploaded == 0)
+        });
+        // The frame after a draw: the interval since it started is the draw's cost.
+        if let Some(t) = self.draw_started.take() {
+            self.last_draw = Some((t, t.elapsed()));
+        }
+        let due = self
+            .last_draw
+            .is_none_or(|(t, cost)| t.elapsed() >= cost * 4);
         if let Some(target) = &g.target
             && self.drawn != Some(key)
+            && (urgent || due)
         {
             self.drawn = Some(key);
+            self.draw_started = Some(Instant::now());
             g.renderer.render(
                 &g.state.device,
                 &g.state.queue,

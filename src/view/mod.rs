@@ -43,9 +43,14 @@ pub fn bounds(mesh: &Mesh) -> Option<(Vec3, f32)> {
     (lo.x <= hi.x).then(|| ((lo + hi) * 0.5, ((hi - lo) * 0.5).length()))
 }
 
-/// The starting view: the whole scene, seen from its open side (the first of +z, −z, +x,
-/// −x along which a ray from the centre escapes, as through a Cornell box's missing front
-/// wall), or from above at an angle when it is closed.
+/// The starting view. From the centre of the scene's bounds, rays go out along +z, −z,
+/// +x and −x:
+/// - the first that escapes is the open side (a Cornell box's missing front wall): look in
+///   through it at the whole scene;
+/// - when all four hit surfaces that face the centre, the centre is inside a room or a
+///   courtyard (Sponza's atrium): stand there and look along the longer horizontal axis;
+/// - otherwise (the centre is inside a closed object): the whole scene from above at an
+///   angle.
 pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     let Some((c, r)) = bounds(mesh) else {
         return Camera::default();
@@ -56,18 +61,37 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
         (Vec3::X, std::f32::consts::FRAC_PI_2),
         (-Vec3::X, -std::f32::consts::FRAC_PI_2),
     ];
-    let open = dirs
+    let hits: Vec<_> = dirs
         .iter()
-        .find(|(d, _)| {
-            bvh.closest_hit(c, *d, 0.0, f32::INFINITY, u32::MAX)
-                .is_none()
+        .map(|(d, _)| bvh.closest_hit(c, *d, 0.0, f32::INFINITY, u32::MAX))
+        .collect();
+    if let Some(k) = hits.iter().position(|h| h.is_none()) {
+        return Camera::framing(c, r, dirs[k].1, 0.0);
+    }
+    let facing_centre = hits.iter().zip(&dirs).all(|(h, (d, _))| {
+        h.as_ref().is_some_and(|h| {
+            let t = &mesh.triangles[h.triangle as usize];
+            (t[1] - t[0]).cross(t[2] - t[0]).dot(*d) < 0.0
         })
-        .map(|(_, yaw)| *yaw);
-    let (yaw, pitch) = match open {
-        Some(yaw) => (yaw, 0.0),
-        None => (0.6, 0.6),
-    };
-    Camera::framing(c, r, yaw, pitch)
+    });
+    if facing_centre {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for v in mesh.triangles.iter().flatten().filter(|v| v.is_finite()) {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+        let e = hi - lo;
+        // Looking along +x is yaw −90° (the eye sits on the −x side of the target).
+        let yaw = if e.x >= e.z {
+            -std::f32::consts::FRAC_PI_2
+        } else {
+            std::f32::consts::PI
+        };
+        let mut cam = Camera::framing(c, r, yaw, 0.1);
+        cam.distance = r * 0.02;
+        return cam;
+    }
+    Camera::framing(c, r, 0.6, 0.6)
 }
 
 /// Auto exposure from per-element radiosity: the EV that maps the 95th percentile of the
