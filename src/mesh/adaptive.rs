@@ -60,7 +60,7 @@ pub fn size(e: &Element) -> f64 {
 impl Mesh {
     /// Elements to split for `values` (per-element radiosity): log-luminance contrast to a
     /// vertex-sharing neighbour above `threshold`, size above `min_size` (splitting halves
-    /// it), then closed under 2:1 balance.
+    /// it). Not yet balanced: add other criteria, then call [`Mesh::balance`].
     pub fn mark_for_refinement(&self, values: &[Vec3], threshold: f32, min_size: f64) -> Vec<bool> {
         let n = self.elements.len();
         let nv = self.display.positions.len();
@@ -103,7 +103,6 @@ impl Mesh {
                 (hi[c] - l).max(l - lo[c]) > threshold
             });
         }
-        self.balance(&mut marked);
         marked
     }
 

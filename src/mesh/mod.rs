@@ -17,7 +17,7 @@
 mod adaptive;
 mod display;
 
-pub use adaptive::{AdaptiveSettings, Moved};
+pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
 pub use display::{DisplayMesh, Reconstruction};
 
 use crate::scene::Scene;

@@ -446,9 +446,11 @@ impl Solver {
         }
         let min_size = a.min_size.unwrap_or(self.mesh.element_size / 8.0);
         let values = self.radiosity();
-        let marked = self
+        let mut marked = self
             .mesh
             .mark_for_refinement(&values, a.threshold, min_size);
+        self.mark_visibility_changes(&mut marked, min_size);
+        self.mesh.balance(&mut marked);
         let count = marked.iter().filter(|m| **m).count();
         if count == 0 || self.mesh.elements.len() + 3 * count > a.max_elements {
             return false;
@@ -592,6 +594,98 @@ impl Solver {
         self.mesh_version += 1;
         self.phase = Phase::Iterating;
         true
+    }
+
+    /// Marks elements across which the visibility of a main light source changes: shadow
+    /// rays from the element's three corners to the source disagree (a shadow or penumbra
+    /// boundary, or a contact line where another surface touches it). Sources: punctual and
+    /// directional lights, the sun, and the patches that carry most of the light (up to
+    /// 8, each at least 1 % of the total: shot power for progressive refinement, emitted
+    /// power otherwise), seen at their centroids. Such elements are split down to the
+    /// minimum size, so hard shadows come out as sharp as it allows.
+    fn mark_visibility_changes(&self, marked: &mut [bool], min_size: f64) {
+        let mesh = &self.mesh;
+        let eps = mesh.epsilon();
+        let far = mesh.scale * 4.0;
+        // Targets: a point (mesh frame, with its triangle to skip) or a direction.
+        let mut points: Vec<(Vec3, u32)> = Vec::new();
+        let mut directions: Vec<Vec3> = Vec::new();
+        for light in &self.external.lights {
+            match light {
+                crate::scene::Light::Point { position, .. }
+                | crate::scene::Light::Spot { position, .. } => {
+                    points.push((mesh.to_local(*position), u32::MAX))
+                }
+                crate::scene::Light::Directional { direction, .. } => {
+                    directions.push((-direction.as_vec3()).normalize_or_zero())
+                }
+            }
+        }
+        if let Some((d, _)) = self.external.environment.as_ref().and_then(|e| e.sun) {
+            directions.push(d.as_vec3().normalize_or_zero());
+        }
+        let power: Vec<f64> = mesh
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let b = if self.settings.method == Method::Progressive {
+                    sum3d(self.shot_total[i])
+                } else {
+                    sum3(p.emission)
+                };
+                b.abs() * p.area as f64
+            })
+            .collect();
+        let total: f64 = power.iter().sum();
+        let mut order: Vec<usize> = (0..power.len())
+            .filter(|&i| power[i] > 0.01 * total)
+            .collect();
+        order.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
+        for &p in order.iter().take(8) {
+            let patch = &mesh.patches[p];
+            points.push((patch.centroid() + patch.normal * eps, patch.scene_triangle));
+        }
+        if points.is_empty() && directions.is_empty() {
+            return;
+        }
+        let bvh = &self.bvh;
+        let extra: Vec<u32> = (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .filter(|&i| {
+                let e = &mesh.elements[i];
+                if marked[i] || crate::mesh::element_size(e) * 0.5 < min_size * 0.999 {
+                    return false;
+                }
+                let own = mesh.patches[e.patch as usize].scene_triangle;
+                let c = e.centroid();
+                // Corners pulled 1 % towards the centroid (a corner exactly on a contact
+                // line is ambiguous) and lifted off the surface.
+                let corners = e.verts.map(|v| v + (c - v) * 0.01 + e.normal * eps);
+                let disagree = |vis: [bool; 3]| vis[0] != vis[1] || vis[1] != vis[2];
+                let seen_points = points.iter().any(|&(t, tri)| {
+                    if e.normal.dot(t - c) <= 0.0 {
+                        return false;
+                    }
+                    disagree(corners.map(|x| bvh.transmittance(x, t, [own, tri]) > 0.5))
+                });
+                seen_points
+                    || directions.iter().any(|&d| {
+                        if e.normal.dot(d) <= 0.0 {
+                            return false;
+                        }
+                        disagree(
+                            corners
+                                .map(|x| bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5),
+                        )
+                    })
+            })
+            .map(|i| i as u32)
+            .collect();
+        for i in extra {
+            marked[i as usize] = true;
+        }
     }
 
     /// Changes the reflectance and emitted radiosity of some patches without restarting:
