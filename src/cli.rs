@@ -18,6 +18,8 @@ use std::time::{Duration, Instant};
 
 mod bench;
 
+pub use bench::register_font;
+
 /// Diffuse global illumination (radiosity) for glTF scenes.
 #[derive(Parser, Debug)]
 #[command(

@@ -6,6 +6,7 @@
 //! a thread for the viewer ([`view`]).
 
 pub mod accel;
+pub mod analytic;
 pub mod cli;
 pub mod export;
 pub mod mesh;

@@ -225,7 +225,7 @@ pub fn convergence(
 }
 
 /// Registers DejaVu Sans with plotters if the system has it; returns whether text can be drawn.
-fn register_font() -> bool {
+pub fn register_font() -> bool {
     use std::sync::OnceLock;
     static OK: OnceLock<bool> = OnceLock::new();
     *OK.get_or_init(|| {

@@ -64,11 +64,11 @@ impl Mesh {
     pub fn mark_for_refinement(&self, values: &[Vec3], threshold: f32, min_size: f64) -> Vec<bool> {
         let n = self.elements.len();
         let nv = self.display.positions.len();
-        // Floor: 1 % of the area-weighted mean luminance.
+        // Floor: 1 % of the area-weighted mean luminance of the lit (non-emitting) surfaces.
         let (mut sum, mut area) = (0.0f64, 0.0f64);
         for (e, v) in self.elements.iter().zip(values) {
             let l = luminance(*v);
-            if l.is_finite() {
+            if l.is_finite() && self.patches[e.patch as usize].emission.max_element() <= 0.0 {
                 sum += l.max(0.0) as f64 * e.area as f64;
                 area += e.area as f64;
             }

@@ -12,15 +12,16 @@ use super::{Material, Object, Scene};
 use glam::{DMat4, DVec3, Vec3};
 
 /// Names accepted by [`by_name`] (`builtin:NAME` on the command line).
-pub const NAMES: &[&str] = &["cornell", "furnace-cube", "furnace-sphere"];
+pub const NAMES: &[&str] = &["cornell", "furnace-cube", "furnace-sphere", "penumbra"];
 
 /// A built-in scene by name: `cornell` (the default scene), `furnace-cube` and
-/// `furnace-sphere` (ρ = 0.5, E = 1).
+/// `furnace-sphere` (ρ = 0.5, E = 1), `penumbra` (see [`penumbra`]).
 pub fn by_name(name: &str) -> Option<Scene> {
     match name {
         "cornell" | "cornell-box" => Some(cornell_box()),
         "furnace-cube" => Some(furnace_box(DVec3::ZERO, DVec3::ONE, 0.5, 1.0)),
         "furnace-sphere" => Some(furnace_sphere(DVec3::ZERO, 1.0, 3, 0.5, 1.0)),
+        "penumbra" => Some(penumbra()),
         _ => None,
     }
 }
@@ -380,4 +381,83 @@ pub fn icosphere(level: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
 /// the same scene in other tools. Used to produce `assets/cornell_box.gltf`.
 pub fn cornell_box_gltf() -> String {
     super::gltf::write_gltf(&cornell_box())
+}
+
+/// The `penumbra` scene's dimensions (metres): a floor square of half-width
+/// `PENUMBRA_FLOOR` at y = 0 (ρ = [`PENUMBRA_RHO`]); a square emitter of half-width
+/// `PENUMBRA_LIGHT` at height `PENUMBRA_LIGHT_Y` facing down (radiance 1, black); a black
+/// square occluder of half-width `PENUMBRA_OCCLUDER` at height `PENUMBRA_OCCLUDER_Y`,
+/// centred at (`PENUMBRA_OCCLUDER_X`, `PENUMBRA_OCCLUDER_Z`).
+pub const PENUMBRA_FLOOR: f64 = 1.0;
+pub const PENUMBRA_LIGHT: f64 = 0.25;
+pub const PENUMBRA_LIGHT_Y: f64 = 1.0;
+pub const PENUMBRA_OCCLUDER: f64 = 0.2;
+pub const PENUMBRA_OCCLUDER_Y: f64 = 0.2;
+pub const PENUMBRA_OCCLUDER_X: f64 = 0.1;
+pub const PENUMBRA_OCCLUDER_Z: f64 = 0.05;
+pub const PENUMBRA_RHO: f32 = 0.5;
+
+/// An analytic shadow: a square emitter over a floor with a floating square occluder,
+/// all parallel. The emitter and the occluder are black, so the light the floor reflects
+/// never comes back: B_floor(x) = ρ · π L · F(x → the part of the emitter the occluder
+/// leaves visible), which is exact by polygon clipping (`radiosity::analytic`): umbra,
+/// penumbra and full light with a closed form everywhere.
+pub fn penumbra() -> Scene {
+    let square = |o: &mut Object, c: DVec3, half: f64, material: u32, up: bool| {
+        let base = o.positions.len() as u32;
+        let (x0, x1, z0, z1) = (c.x - half, c.x + half, c.z - half, c.z + half);
+        for (x, z) in [(x0, z0), (x0, z1), (x1, z1), (x1, z0)] {
+            o.positions.push(DVec3::new(x, c.y, z).as_vec3());
+        }
+        // Counter-clockwise seen from +y as listed; reversed to face down.
+        if up {
+            o.triangles.push([base, base + 1, base + 2]);
+            o.triangles.push([base, base + 2, base + 3]);
+        } else {
+            o.triangles.push([base, base + 2, base + 1]);
+            o.triangles.push([base, base + 3, base + 2]);
+        }
+        o.triangle_material.extend([material, material]);
+    };
+    let object = |name: &str| Object {
+        name: name.into(),
+        world_from_local: DMat4::IDENTITY,
+        ..Default::default()
+    };
+    let mut floor = object("floor");
+    square(&mut floor, DVec3::ZERO, PENUMBRA_FLOOR, 0, true);
+    let mut light = object("light");
+    square(
+        &mut light,
+        DVec3::new(0.0, PENUMBRA_LIGHT_Y, 0.0),
+        PENUMBRA_LIGHT,
+        1,
+        false,
+    );
+    let mut occluder = object("occluder");
+    square(
+        &mut occluder,
+        DVec3::new(
+            PENUMBRA_OCCLUDER_X,
+            PENUMBRA_OCCLUDER_Y,
+            PENUMBRA_OCCLUDER_Z,
+        ),
+        PENUMBRA_OCCLUDER,
+        2,
+        false,
+    );
+    let mut black = Material::diffuse("black occluder", Vec3::ZERO);
+    black.double_sided = true;
+    Scene {
+        name: "builtin:penumbra".into(),
+        objects: vec![floor, light, occluder],
+        materials: vec![
+            Material::diffuse("floor", Vec3::splat(PENUMBRA_RHO)),
+            Material::emitter("light", Vec3::ZERO, Vec3::ONE),
+            black,
+        ],
+        lights: Vec::new(),
+        environment: None,
+        warnings: Vec::new(),
+    }
 }

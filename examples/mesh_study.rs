@@ -1,0 +1,179 @@
+//! Error per element, uniform against adaptive meshing, on `builtin:penumbra` (a square
+//! emitter, a floating occluder, a floor; exact answer by polygon clipping, see
+//! `radiosity::analytic`).
+//!
+//! `cargo run --release --example mesh_study -- OUT_DIR` writes `OUT_DIR/mesh_study.csv`
+//! (mesh, setting, elements, RMS and max relative error of the floor's radiosity at a 41×41
+//! grid of points, Gouraud reconstruction as the viewer shows it) and `mesh_study.png`.
+
+use glam::DVec3;
+use plotters::prelude::*;
+use radiosity::analytic::penumbra_floor;
+use radiosity::cli::probe_values;
+use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
+use radiosity::pipeline::Prepared;
+use radiosity::scene::builtin;
+use radiosity::solver::{Method, SolverSettings};
+use std::sync::atomic::AtomicBool;
+
+fn grid() -> Vec<(DVec3, DVec3)> {
+    let n = 41;
+    let mut pts = Vec::new();
+    for i in 0..n {
+        for k in 0..n {
+            let x = -0.95 + 1.9 * i as f64 / (n - 1) as f64;
+            let z = -0.95 + 1.9 * k as f64 / (n - 1) as f64;
+            pts.push((DVec3::new(x, 0.0, z), DVec3::Y));
+        }
+    }
+    pts
+}
+
+/// (elements, RMS relative error, max relative error).
+fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, f64, f64) {
+    let scene = builtin::penumbra();
+    let p = Prepared::new(
+        &scene,
+        &MeshSettings {
+            element_size: Some(element_size),
+            ..Default::default()
+        },
+    );
+    // Gauss–Seidel: the floor's light goes only to black surfaces, so two sweeps finish.
+    let mut s = p
+        .solver(SolverSettings {
+            method: Method::GaussSeidel,
+            tolerance: 1e-6,
+            adaptive,
+            ..Default::default()
+        })
+        .expect("solver");
+    s.run(None, &AtomicBool::new(false)).expect("solve");
+    let pts = grid();
+    let got = probe_values(s.mesh(), &s.radiosity(), &pts, Reconstruction::Gouraud);
+    let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+    let peak = pts
+        .iter()
+        .map(|(p, _)| penumbra_floor(p.x, p.z))
+        .fold(0.0, f64::max);
+    for ((p, _), g) in pts.iter().zip(&got) {
+        let exact = penumbra_floor(p.x, p.z);
+        let e = g.x as f64 - exact;
+        num += e * e;
+        den += exact * exact;
+        max = max.max(e.abs() / peak);
+    }
+    // Count only the floor's elements: the emitter and occluder are the same in both.
+    let floor = s
+        .mesh()
+        .elements
+        .iter()
+        .filter(|e| s.mesh().patches[e.patch as usize].object == 0)
+        .count();
+    (floor, (num / den).sqrt(), max)
+}
+
+fn main() {
+    let out = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| ".".into()));
+    std::fs::create_dir_all(&out).expect("output folder");
+    let mut rows: Vec<(String, String, usize, f64, f64)> = Vec::new();
+    for size in [0.2, 0.14, 0.1, 0.07, 0.05, 0.035, 0.025] {
+        let (n, rms, max) = run(size, None);
+        println!("uniform  size {size:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}");
+        rows.push(("uniform".into(), format!("size {size}"), n, rms, max));
+    }
+    let list: [(f32, f64); 6] = [
+        (0.4, 0.05),
+        (0.2, 0.05),
+        (0.2, 0.025),
+        (0.2, 0.0125),
+        (0.1, 0.0125),
+        (0.1, 0.00625),
+    ];
+    for (threshold, min) in list {
+        let a = AdaptiveSettings {
+            threshold,
+            min_size: Some(min),
+            max_passes: 8,
+            max_elements: 2_000_000,
+        };
+        let (n, rms, max) = run(0.2, Some(a));
+        println!(
+            "adaptive threshold {threshold:<5} min {min:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}"
+        );
+        rows.push((
+            "adaptive".into(),
+            format!("threshold {threshold} min {min}"),
+            n,
+            rms,
+            max,
+        ));
+    }
+    let mut csv = String::from("mesh,setting,elements,rms_relative,max_relative\n");
+    for (m, s, n, r, x) in &rows {
+        csv += &format!("{m},{s},{n},{r},{x}\n");
+    }
+    std::fs::write(out.join("mesh_study.csv"), csv).expect("csv");
+
+    let path = out.join("mesh_study.png");
+    radiosity::cli::register_font();
+    let (w, h) = (800u32, 560u32);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).expect("plot");
+        let xs: Vec<f64> = rows.iter().map(|r| r.2 as f64).collect();
+        let ys: Vec<f64> = rows.iter().map(|r| r.3).collect();
+        let (x0, x1) = (
+            xs.iter().copied().fold(f64::INFINITY, f64::min) * 0.7,
+            xs.iter().copied().fold(0.0, f64::max) * 1.4,
+        );
+        let (y0, y1) = (
+            ys.iter().copied().fold(f64::INFINITY, f64::min) * 0.7,
+            ys.iter().copied().fold(0.0, f64::max) * 1.4,
+        );
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "builtin:penumbra: floor radiosity error against elements",
+                ("sans-serif", 20),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .expect("plot");
+        chart
+            .configure_mesh()
+            .x_desc("floor elements")
+            .y_desc("RMS relative error (Gouraud)")
+            .draw()
+            .expect("plot");
+        for (name, colour) in [("uniform", BLUE), ("adaptive", RED)] {
+            let pts: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.0 == name)
+                .map(|r| (r.2 as f64, r.3))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
+                .expect("plot")
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            chart
+                .draw_series(pts.iter().map(|p| Circle::new(*p, 4, colour.filled())))
+                .expect("plot");
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .expect("plot");
+        root.present().expect("plot");
+    }
+    image::RgbImage::from_raw(w, h, buf)
+        .expect("plot buffer")
+        .save(&path)
+        .expect("png");
+    println!("wrote {}", path.display());
+}
