@@ -29,8 +29,8 @@ fn grid() -> Vec<(DVec3, DVec3)> {
     pts
 }
 
-/// (elements, RMS relative error, max relative error).
-fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, f64, f64) {
+/// (elements, RMS relative error, max relative error) for Gouraud and for Hermite.
+fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, [(f64, f64); 2]) {
     let scene = builtin::penumbra();
     let p = Prepared::new(
         &scene,
@@ -50,19 +50,22 @@ fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, f64, f6
         .expect("solver");
     s.run(None, &AtomicBool::new(false)).expect("solve");
     let pts = grid();
-    let got = probe_values(s.mesh(), &s.radiosity(), &pts, Reconstruction::Gouraud);
-    let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
     let peak = pts
         .iter()
         .map(|(p, _)| penumbra_floor(p.x, p.z))
         .fold(0.0, f64::max);
-    for ((p, _), g) in pts.iter().zip(&got) {
-        let exact = penumbra_floor(p.x, p.z);
-        let e = g.x as f64 - exact;
-        num += e * e;
-        den += exact * exact;
-        max = max.max(e.abs() / peak);
-    }
+    let errors = [Reconstruction::Gouraud, Reconstruction::Hermite].map(|mode| {
+        let got = probe_values(s.mesh(), &s.radiosity(), &pts, mode);
+        let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+        for ((p, _), g) in pts.iter().zip(&got) {
+            let exact = penumbra_floor(p.x, p.z);
+            let e = g.x as f64 - exact;
+            num += e * e;
+            den += exact * exact;
+            max = max.max(e.abs() / peak);
+        }
+        ((num / den).sqrt(), max)
+    });
     // Count only the floor's elements: the emitter and occluder are the same in both.
     let floor = s
         .mesh()
@@ -70,7 +73,7 @@ fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, f64, f6
         .iter()
         .filter(|e| s.mesh().patches[e.patch as usize].object == 0)
         .count();
-    (floor, (num / den).sqrt(), max)
+    (floor, errors)
 }
 
 fn main() {
@@ -78,9 +81,11 @@ fn main() {
     std::fs::create_dir_all(&out).expect("output folder");
     let mut rows: Vec<(String, String, usize, f64, f64)> = Vec::new();
     for size in [0.2, 0.14, 0.1, 0.07, 0.05, 0.035, 0.025] {
-        let (n, rms, max) = run(size, None);
-        println!("uniform  size {size:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}");
-        rows.push(("uniform".into(), format!("size {size}"), n, rms, max));
+        let (n, e) = run(size, None);
+        for (name, (rms, max)) in ["uniform Gouraud", "uniform Hermite"].iter().zip(e) {
+            println!("{name:<17} size {size:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}");
+            rows.push((name.to_string(), format!("size {size}"), n, rms, max));
+        }
     }
     let list: [(f32, f64); 6] = [
         (0.4, 0.05),
@@ -97,17 +102,19 @@ fn main() {
             max_passes: 8,
             max_elements: 2_000_000,
         };
-        let (n, rms, max) = run(0.2, Some(a));
-        println!(
-            "adaptive threshold {threshold:<5} min {min:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}"
-        );
-        rows.push((
-            "adaptive".into(),
-            format!("threshold {threshold} min {min}"),
-            n,
-            rms,
-            max,
-        ));
+        let (n, e) = run(0.2, Some(a));
+        for (name, (rms, max)) in ["adaptive Gouraud", "adaptive Hermite"].iter().zip(e) {
+            println!(
+                "{name:<17} threshold {threshold:<5} min {min:<7} {n:>7} floor elements  RMS {rms:.4}  max {max:.4}"
+            );
+            rows.push((
+                name.to_string(),
+                format!("threshold {threshold} min {min}"),
+                n,
+                rms,
+                max,
+            ));
+        }
     }
     let mut csv = String::from("mesh,setting,elements,rms_relative,max_relative\n");
     for (m, s, n, r, x) in &rows {
@@ -145,10 +152,15 @@ fn main() {
         chart
             .configure_mesh()
             .x_desc("floor elements")
-            .y_desc("RMS relative error (Gouraud)")
+            .y_desc("RMS relative error")
             .draw()
             .expect("plot");
-        for (name, colour) in [("uniform", BLUE), ("adaptive", RED)] {
+        for (name, colour) in [
+            ("uniform Gouraud", BLUE),
+            ("adaptive Gouraud", RED),
+            ("uniform Hermite", CYAN),
+            ("adaptive Hermite", MAGENTA),
+        ] {
             let pts: Vec<(f64, f64)> = rows
                 .iter()
                 .filter(|r| r.0 == name)

@@ -4,7 +4,7 @@
 //! the file and the problem, and exit status 1.
 
 use crate::export::{baked_glb, write_atomic};
-use crate::mesh::{AdaptiveSettings, DisplayMesh, MeshSettings, Reconstruction};
+use crate::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
 use crate::pipeline::Prepared;
 use crate::scene::{Scene, builtin};
 use crate::solver::form_factor::FormFactorSettings;
@@ -101,7 +101,7 @@ pub enum Command {
         /// Output CSV (x,y,z,r,g,b); standard output when absent.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// flat or gouraud (the viewer's default).
+        /// flat, gouraud (the viewer's default) or hermite.
         #[arg(long, default_value = "gouraud")]
         reconstruction: Reconstruction,
         #[command(flatten)]
@@ -143,7 +143,7 @@ pub struct RenderOptions {
     /// Default: the whole scene from its open side, as the viewer starts.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
     pub camera: Option<(f32, f32, f32)>,
-    /// flat or gouraud.
+    /// flat, gouraud or hermite.
     #[arg(long, alias = "reconstruction", default_value = "gouraud")]
     pub mode: Reconstruction,
     /// Exposure in stops (default: auto exposure, as the viewer).
@@ -651,13 +651,11 @@ pub fn probe_values(
     points: &[(DVec3, DVec3)],
     mode: Reconstruction,
 ) -> Vec<Vec3> {
-    let vertex_values = mesh.display.vertex_values(&mesh.elements, radiosity);
+    let r = crate::mesh::Reconstructor::new(mode, &mesh.display, &mesh.elements, radiosity);
     points
         .iter()
         .map(|(p, n)| match mesh.locate(mesh.to_local(*p), n.as_vec3()) {
-            Some((e, bary)) => {
-                DisplayMesh::value_at(mode, &mesh.elements, radiosity, &vertex_values, e, bary)
-            }
+            Some((e, bary)) => r.at(&mesh.elements, radiosity, e, bary),
             None => Vec3::ZERO,
         })
         .collect()

@@ -168,6 +168,30 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
     h.step();
     assert!(!h.state().wireframe(), "W did not toggle the wireframe");
 
+    // Hermite shading through its button; the picture changes and still bleeds.
+    h.get_by_label("Hermite").click();
+    h.step();
+    h.step();
+    assert_eq!(
+        h.state().display().reconstruction,
+        radiosity::mesh::Reconstruction::Hermite
+    );
+    let hermite = h.render().expect("render");
+    hermite
+        .save(screenshots().join("kittest_hermite.png"))
+        .unwrap();
+    assert_ne!(hermite, img, "Hermite shading changed nothing on screen");
+    assert_bleeding(
+        &hermite,
+        px(r.min.x),
+        px(r.min.y),
+        px(r.max.x),
+        px(r.max.y),
+        "kittest hermite",
+    );
+    h.get_by_label("Gouraud").click();
+    h.step();
+
     // Picking: a click in the middle of the view selects the back wall's object and shows
     // its material in the side panel.
     click(&mut h, r.center());
@@ -295,25 +319,33 @@ fn tempdir() -> PathBuf {
 
 #[test]
 fn render_writes_the_cornell_box_with_colour_bleeding() {
-    let out = screenshots().join("render_cornell.png");
-    let _ = std::fs::remove_file(&out);
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
-        .args([
-            "render",
-            "builtin:cornell",
-            "--max-elements",
-            "1500",
-            "--size",
-            "640x480",
-            "--out",
-        ])
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let img = image::open(&out).unwrap().to_rgba8();
-    assert_eq!(img.dimensions(), (640, 480));
-    assert_bleeding(&img, 0, 0, 640, 480, "render");
+    let mut images = Vec::new();
+    for mode in ["gouraud", "hermite"] {
+        let out = screenshots().join(format!("render_cornell_{mode}.png"));
+        let _ = std::fs::remove_file(&out);
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args([
+                "render",
+                "builtin:cornell",
+                "--max-elements",
+                "1500",
+                "--size",
+                "640x480",
+                "--mode",
+                mode,
+                "--out",
+            ])
+            .arg(&out)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let img = image::open(&out).unwrap().to_rgba8();
+        assert_eq!(img.dimensions(), (640, 480));
+        assert_bleeding(&img, 0, 0, 640, 480, mode);
+        images.push(img);
+    }
+    // The Hermite shader path draws something else than the Gouraud one.
+    assert_ne!(images[0], images[1]);
 }
 
 #[test]

@@ -18,7 +18,7 @@ mod adaptive;
 mod display;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
-pub use display::{DisplayMesh, Reconstruction};
+pub use display::{Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, eval_bezier};
 
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};

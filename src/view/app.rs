@@ -128,6 +128,16 @@ enum PathAction {
     Screenshot,
 }
 
+/// Everything the 3D picture depends on.
+#[derive(Clone, Copy, PartialEq)]
+struct DrawKey {
+    camera: Camera,
+    display: Display,
+    uploaded: u64,
+    bezier: u64,
+    size: [u32; 2],
+}
+
 struct Snap {
     version: u64,
     radiosity: Arc<[Vec3]>,
@@ -187,10 +197,12 @@ pub struct App {
     orbit: bool,
     auto_method: bool,
     /// What the 3D target shows now: it is drawn again only when this changes.
-    drawn: Option<(Camera, Display, u64, [u32; 2])>,
+    drawn: Option<DrawKey>,
     /// When the last 3D draw started and what it cost (the interval to the next frame).
     last_draw: Option<(Instant, Duration)>,
     draw_started: Option<Instant>,
+    /// The snapshot version whose Hermite control points are on the GPU.
+    bezier_uploaded: u64,
     frame_stats: Option<PathBuf>,
     solve_started: Option<Instant>,
     close_after_shot: bool,
@@ -322,6 +334,7 @@ impl App {
             drawn: None,
             last_draw: None,
             draw_started: None,
+            bezier_uploaded: 0,
             frame_stats: options.frame_stats.clone(),
             solve_started: None,
             close_after_shot: options.screenshot.is_some(),
@@ -403,6 +416,7 @@ impl App {
         self.bvh = None;
         self.snapshot = None;
         self.uploaded = 0;
+        self.bezier_uploaded = 0;
         self.materials.clear();
         self.objects.clear();
         self.base.clear();
@@ -554,6 +568,7 @@ impl App {
                         g.mesh = Some(g.renderer.upload(&g.state.device, &mesh));
                     }
                     self.uploaded = 0;
+                    self.bezier_uploaded = 0;
                     self.snapshot = None;
                     self.mesh = Some(mesh);
                     self.bvh = Some(bvh);
@@ -610,6 +625,7 @@ impl App {
                         g.mesh = Some(g.renderer.upload(&g.state.device, &mesh));
                     }
                     self.uploaded = 0;
+                    self.bezier_uploaded = 0;
                     self.snapshot = None;
                     self.status = format!("refined: {} elements", mesh.elements.len());
                     self.mesh = Some(mesh);
@@ -641,6 +657,33 @@ impl App {
     fn frame_all(&mut self) {
         if let Some((c, r)) = self.mesh.as_deref().and_then(super::bounds) {
             self.camera.frame(c, r);
+        }
+    }
+
+    /// Hermite display needs the control points of the uploaded snapshot: computed here
+    /// when the mode is on and they are missing (the other modes never pay for them).
+    fn upload_bezier(&mut self) {
+        if self.display.reconstruction != Reconstruction::Hermite
+            || self.uploaded == 0
+            || self.bezier_uploaded == self.uploaded
+        {
+            return;
+        }
+        let (Some(g), Some(s), Some(mesh)) = (&self.gpu, &self.snapshot, &self.mesh) else {
+            return;
+        };
+        let Some(gm) = &g.mesh else { return };
+        if !gm.supports_hermite() {
+            self.display.reconstruction = Reconstruction::Gouraud;
+            self.status = "too many elements for Hermite display on this device".into();
+            return;
+        }
+        if s.version != self.uploaded || s.radiosity.len() != mesh.elements.len() {
+            return;
+        }
+        let points = super::render::bezier_points(mesh, &s.radiosity);
+        if gm.set_bezier(&g.state.queue, &points) {
+            self.bezier_uploaded = self.uploaded;
         }
     }
 
@@ -786,6 +829,7 @@ impl eframe::App for App {
 
         self.handle_events();
         self.upload();
+        self.upload_bezier();
         self.keys(&ctx);
         self.files_dropped(&ctx);
         self.screenshots(&ctx);
@@ -1151,6 +1195,7 @@ impl App {
             ui.label("Shading");
             ui.selectable_value(&mut d.reconstruction, Reconstruction::Flat, "flat");
             ui.selectable_value(&mut d.reconstruction, Reconstruction::Gouraud, "Gouraud");
+            ui.selectable_value(&mut d.reconstruction, Reconstruction::Hermite, "Hermite");
         });
         ui.checkbox(&mut d.false_colour, "False colour (log radiosity)");
         let r = ui.add(egui::Slider::new(&mut d.ev, -20.0..=20.0).text("Exposure (EV)"));
@@ -1477,16 +1522,27 @@ impl App {
         if self.orbit && self.mesh.is_some() {
             self.camera.yaw += 0.5f32.to_radians();
         }
-        let key = (self.camera, self.display, self.uploaded, size);
-        // What a person did (camera, size, display choices) is drawn at once. What the
-        // solver did (a new snapshot, and the auto exposure that follows it) waits until
-        // the last draw has had 4× its cost to itself, so on a slow (software) renderer
-        // most frames stay cheap while a big scene streams.
-        let urgent = self.drawn.is_none_or(|(c, d, u, sz)| {
-            let mut d = d;
+        let key = DrawKey {
+            camera: self.camera,
+            display: self.display,
+            uploaded: self.uploaded,
+            bezier: self.bezier_uploaded,
+            size,
+        };
+        // What a person did (camera, size, display choices) is drawn at once, and so are a
+        // first snapshot and the Hermite data a display choice asked for. What the solver
+        // did (a new snapshot, and the auto exposure that follows it) waits until the last
+        // draw has had 4× its cost to itself, so on a slow (software) renderer most frames
+        // stay cheap while a big scene streams.
+        let urgent = self.drawn.is_none_or(|k| {
+            let mut d = k.display;
             d.ev = self.display.ev;
             d.log_range = self.display.log_range;
-            c != self.camera || sz != size || d != self.display || (u == 0) != (self.uploaded == 0)
+            k.camera != self.camera
+                || k.size != size
+                || d != self.display
+                || (k.uploaded == 0) != (self.uploaded == 0)
+                || k.bezier != self.bezier_uploaded
         });
         // The frame after a draw: the interval since it started is the draw's cost.
         if let Some(t) = self.draw_started.take() {

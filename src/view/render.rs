@@ -9,7 +9,7 @@
 //! element and vertex, not a vertex-buffer rebuild.
 
 use super::camera::Camera;
-use crate::mesh::{Mesh, Reconstruction};
+use crate::mesh::{Bezier, Mesh, Reconstruction};
 use anyhow::{Context, Result, anyhow};
 use bytemuck::{Pod, Zeroable};
 use eframe::egui_wgpu::wgpu;
@@ -119,6 +119,7 @@ pub struct GpuMesh {
     count: u32,
     element_values: wgpu::Texture,
     vertex_values: wgpu::Texture,
+    bezier: Option<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
     /// The mesh it was made from (to check snapshot sizes).
     pub elements: usize,
@@ -246,6 +247,10 @@ impl Renderer {
                 },
                 texture_entry(1),
                 texture_entry(2),
+                wgpu::BindGroupLayoutEntry {
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ..texture_entry(3)
+                },
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -339,6 +344,15 @@ impl Renderer {
             mesh.display.positions.len(),
             "display-vertex radiosity",
         );
+        // Hermite control points, 8 texels per element, when the device can hold them.
+        let texels = mesh.elements.len() * 8;
+        let bezier = ((texels as u64).div_ceil(VALUE_WIDTH as u64)
+            <= device.limits().max_texture_dimension_2d as u64)
+            .then(|| value_texture(device, texels, "Hermite control points"));
+        let bezier_view = bezier
+            .as_ref()
+            .unwrap_or(&element_values)
+            .create_view(&Default::default());
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("radiosity view bind group"),
             layout: &self.layout,
@@ -359,6 +373,10 @@ impl Renderer {
                         &vertex_values.create_view(&Default::default()),
                     ),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&bezier_view),
+                },
             ],
         });
         GpuMesh {
@@ -366,6 +384,7 @@ impl Renderer {
             count: vertices.len() as u32,
             element_values,
             vertex_values,
+            bezier,
             bind_group,
             elements: mesh.elements.len(),
             display_vertices: mesh.display.positions.len(),
@@ -386,7 +405,11 @@ impl Renderer {
         let u = Uniforms {
             view_proj: camera.view_proj(aspect).to_cols_array_2d(),
             exposure: 2f32.powf(display.ev) / std::f32::consts::PI,
-            recon: (display.reconstruction == Reconstruction::Gouraud) as u32,
+            recon: match display.reconstruction {
+                Reconstruction::Flat => 0,
+                Reconstruction::Gouraud => 1,
+                Reconstruction::Hermite => 2,
+            },
             tonemap: match display.tonemap {
                 ToneMap::Clamp => 0,
                 ToneMap::Reinhard => 1,
@@ -451,6 +474,45 @@ impl GpuMesh {
         }
         write_values(queue, &self.element_values, elements);
         write_values(queue, &self.vertex_values, vertices);
+        true
+    }
+
+    /// Whether this mesh can show Hermite reconstruction (its control points fit a texture).
+    pub fn supports_hermite(&self) -> bool {
+        self.bezier.is_some()
+    }
+
+    /// Writes the Hermite control points of every element (see [`Bezier`]).
+    pub fn set_bezier(&self, queue: &wgpu::Queue, points: &[Bezier]) -> bool {
+        let Some(t) = &self.bezier else { return false };
+        if points.len() != self.elements {
+            return false;
+        }
+        // 30 floats per element padded to 32, written through the vec4 writer as 8 texels:
+        // regroup the floats 4 at a time.
+        let mut floats: Vec<f32> = Vec::with_capacity(points.len() * 32);
+        for b in points {
+            for p in b {
+                floats.extend_from_slice(&p.to_array());
+            }
+            floats.extend_from_slice(&[0.0, 0.0]);
+        }
+        let rows = ((floats.len() / 4) as u32).div_ceil(VALUE_WIDTH);
+        floats.resize((rows * VALUE_WIDTH * 4) as usize, 0.0);
+        queue.write_texture(
+            t.as_image_copy(),
+            bytemuck::cast_slice(&floats),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(VALUE_WIDTH * 16),
+                rows_per_image: None,
+            },
+            wgpu::Extent3d {
+                width: VALUE_WIDTH,
+                height: rows,
+                depth_or_array_layers: 1,
+            },
+        );
         true
     }
 }
@@ -553,7 +615,18 @@ pub fn render_image(
     let gpu = renderer.upload(&device, mesh);
     let vertex = mesh.display.vertex_values(&mesh.elements, radiosity);
     gpu.set_values(&queue, radiosity, &vertex);
+    if display.reconstruction == Reconstruction::Hermite {
+        gpu.set_bezier(&queue, &bezier_points(mesh, radiosity));
+    }
     let target = Target::new(&device, size);
     renderer.render(&device, &queue, &target, Some(&gpu), camera, display);
     Ok((read_back(&device, &queue, &target)?, adapter))
+}
+
+/// The Hermite control points of every element for `radiosity`.
+pub fn bezier_points(mesh: &Mesh, radiosity: &[Vec3]) -> Vec<Bezier> {
+    let h = mesh.display.hermite(&mesh.elements, radiosity);
+    (0..mesh.elements.len() as u32)
+        .map(|e| crate::mesh::DisplayMesh::bezier(&mesh.elements, &h, e))
+        .collect()
 }

@@ -6,7 +6,7 @@ struct Uniforms {
     view_proj: mat4x4<f32>,
     // Multiplier from radiosity B (W/m²) to displayed radiance: 2^EV / π.
     exposure: f32,
-    // 0 flat, 1 Gouraud.
+    // 0 flat, 1 Gouraud, 2 Hermite (cubic Bézier triangles).
     recon: u32,
     // 0 clamp, 1 Reinhard, 2 ACES (Narkowicz fit).
     tonemap: u32,
@@ -27,6 +27,8 @@ struct Uniforms {
 @group(0) @binding(0) var<uniform> u: Uniforms;
 @group(0) @binding(1) var element_values: texture_2d<f32>;
 @group(0) @binding(2) var vertex_values: texture_2d<f32>;
+// Hermite: per element 10 control points (RGB), packed as 30 floats in 8 RGBA texels.
+@group(0) @binding(3) var bezier_points: texture_2d<f32>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -42,6 +44,8 @@ struct VertexOut {
     @location(1) flat_b: vec3<f32>,
     @location(2) bary: vec3<f32>,
     @location(3) selected: f32,
+    // The element index (exact in f32 below 2^24), constant over the triangle.
+    @location(4) element: f32,
 };
 
 fn fetch(t: texture_2d<f32>, i: u32) -> vec3<f32> {
@@ -57,6 +61,7 @@ fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
     let k = index % 3u;
     o.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
     o.selected = select(0.0, 1.0, v.object == u.selected);
+    o.element = f32(v.element);
     return o;
 }
 
@@ -88,11 +93,42 @@ fn turbo(t: f32) -> vec3<f32> {
     return clamp(vec3<f32>(r, g, b), vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
+fn texel(t: texture_2d<f32>, i: u32) -> vec4<f32> {
+    return textureLoad(t, vec2<i32>(i32(i % u.width), i32(i / u.width)), 0);
+}
+
+fn hermite(e: u32, bary: vec3<f32>) -> vec3<f32> {
+    var f: array<f32, 32>;
+    for (var k = 0u; k < 8u; k++) {
+        let t = texel(bezier_points, e * 8u + k);
+        f[4u * k] = t.x;
+        f[4u * k + 1u] = t.y;
+        f[4u * k + 2u] = t.z;
+        f[4u * k + 3u] = t.w;
+    }
+    let uu = bary.x;
+    let vv = bary.y;
+    let ww = bary.z;
+    let w = array<f32, 10>(
+        uu * uu * uu, vv * vv * vv, ww * ww * ww,
+        3.0 * uu * uu * vv, 3.0 * uu * uu * ww, 3.0 * uu * vv * vv,
+        3.0 * vv * vv * ww, 3.0 * uu * ww * ww, 3.0 * vv * ww * ww,
+        6.0 * uu * vv * ww,
+    );
+    var b = vec3<f32>(0.0);
+    for (var k = 0u; k < 10u; k++) {
+        b += w[k] * vec3<f32>(f[3u * k], f[3u * k + 1u], f[3u * k + 2u]);
+    }
+    return b;
+}
+
 @fragment
 fn fs_main(i: VertexOut) -> @location(0) vec4<f32> {
     var b = i.flat_b;
     if u.recon == 1u {
         b = i.smooth_b;
+    } else if u.recon == 2u {
+        b = hermite(u32(round(i.element)), i.bary);
     }
     var c: vec3<f32>;
     if u.false_colour == 1u {
