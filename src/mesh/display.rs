@@ -121,22 +121,11 @@ impl DisplayMesh {
         mesh
     }
 
-    /// Gouraud vertex values: for each vertex the area-weighted mean of the values of the
-    /// elements that use it.
+    /// Gouraud vertex values: for each vertex the value at the vertex of the least-squares
+    /// plane through the values of the elements that use it (see `fit`); T-vertices take
+    /// the mean of their coarse edge's ends.
     pub fn vertex_values(&self, elements: &[Element], values: &[Vec3]) -> Vec<Vec3> {
-        let mut sum = vec![Vec3::ZERO; self.positions.len()];
-        let mut weight = vec![0.0f32; self.positions.len()];
-        for (e, v) in elements.iter().zip(values) {
-            for &c in &e.corners {
-                sum[c as usize] += *v * e.area;
-                weight[c as usize] += e.area;
-            }
-        }
-        let mut values: Vec<Vec3> = sum
-            .iter()
-            .zip(&weight)
-            .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
-            .collect();
+        let (mut values, _) = self.fit(elements, values);
         for &[v, a, b] in &self.hanging {
             values[v as usize] = (values[a as usize] + values[b as usize]) * 0.5;
         }
@@ -251,10 +240,14 @@ fn along(g: &[Vec3; 3], d: Vec3) -> Vec3 {
 }
 
 impl DisplayMesh {
-    /// Vertex values and gradients for [`Reconstruction::Hermite`].
-    pub fn hermite(&self, elements: &[Element], values: &[Vec3]) -> Hermite {
+    /// Per vertex, the area-weighted least-squares plane through the values at the
+    /// centroids of the elements around it: its value at the vertex (clamped at 0) and its
+    /// gradient per channel. Unlike the plain area-weighted mean, this is exact for linear
+    /// light and extrapolates at a surface's boundary instead of flattening it. Where the
+    /// elements around a vertex do not span two directions, the mean and no slope.
+    fn fit(&self, elements: &[Element], values: &[Vec3]) -> (Vec<Vec3>, Vec<[Vec3; 3]>) {
         let nv = self.positions.len();
-        // Vertex values: area-weighted means (as Gouraud), before T-vertex fixing.
+        // Fallback values: area-weighted means (where the plane fit is not determined).
         let mut sum = vec![Vec3::ZERO; nv];
         let mut weight = vec![0.0f32; nv];
         for (e, v) in elements.iter().zip(values) {
@@ -268,10 +261,13 @@ impl DisplayMesh {
             .zip(&weight)
             .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
             .collect();
-        // Gradients: area-weighted least squares in the vertex's tangent plane,
-        // f_e − f_v ≈ g · (c_e − p_v), a 2×2 normal system per channel.
-        let mut m = vec![[0.0f64; 3]; nv]; // a11, a12, a22
-        let mut r = vec![[[0.0f64; 2]; 3]; nv];
+        // Value and gradient: the area-weighted least-squares plane through the centroids'
+        // values of the elements around the vertex, f_e ≈ a + g · (c_e − p_v) in the
+        // vertex's tangent plane (a 3×3 normal system per channel), evaluated at the vertex.
+        // Where the elements around it do not span two directions (a lone corner), the
+        // area-weighted mean and no slope.
+        let mut m = vec![[0.0f64; 6]; nv]; // s00 s01 s02 s11 s12 s22
+        let mut r = vec![[[0.0f64; 3]; 3]; nv];
         let basis: Vec<(Vec3, Vec3)> = self
             .normals
             .iter()
@@ -285,32 +281,54 @@ impl DisplayMesh {
                 let (t1, t2) = basis[k];
                 let (d1, d2) = (d.dot(t1) as f64, d.dot(t2) as f64);
                 let w = e.area as f64;
-                m[k][0] += w * d1 * d1;
-                m[k][1] += w * d1 * d2;
-                m[k][2] += w * d2 * d2;
-                let df = *v - vals[k];
+                let q = &mut m[k];
+                q[0] += w;
+                q[1] += w * d1;
+                q[2] += w * d2;
+                q[3] += w * d1 * d1;
+                q[4] += w * d1 * d2;
+                q[5] += w * d2 * d2;
                 for ch in 0..3 {
-                    r[k][ch][0] += w * df[ch] as f64 * d1;
-                    r[k][ch][1] += w * df[ch] as f64 * d2;
+                    let f = v[ch] as f64;
+                    r[k][ch][0] += w * f;
+                    r[k][ch][1] += w * f * d1;
+                    r[k][ch][2] += w * f * d2;
                 }
             }
         }
         let mut grads = vec![[Vec3::ZERO; 3]; nv];
         for k in 0..nv {
-            let [a, b, c] = m[k];
-            let det = a * c - b * b;
-            // Fewer than two independent directions (a lone corner): no slope.
-            if det <= 1e-12 * (a * c).max(1e-300) || det <= 0.0 {
+            let [s00, s01, s02, s11, s12, s22] = m[k];
+            // Cofactors of the symmetric matrix.
+            let c00 = s11 * s22 - s12 * s12;
+            let c01 = s02 * s12 - s01 * s22;
+            let c02 = s01 * s12 - s02 * s11;
+            let c11 = s00 * s22 - s02 * s02;
+            let c12 = s01 * s02 - s00 * s12;
+            let c22 = s00 * s11 - s01 * s01;
+            let det = s00 * c00 + s01 * c01 + s02 * c02;
+            let scale = s00 * (s11 * s22).max(1e-300);
+            if det.is_nan() || det <= 1e-9 * scale {
                 continue;
             }
             let (t1, t2) = basis[k];
+            let mut a = Vec3::ZERO;
             for ch in 0..3 {
-                let [r1, r2] = r[k][ch];
-                let g1 = (c * r1 - b * r2) / det;
-                let g2 = (a * r2 - b * r1) / det;
+                let [r0, r1, r2] = r[k][ch];
+                let a_ch = (c00 * r0 + c01 * r1 + c02 * r2) / det;
+                let g1 = (c01 * r0 + c11 * r1 + c12 * r2) / det;
+                let g2 = (c02 * r0 + c12 * r1 + c22 * r2) / det;
+                a[ch] = a_ch.max(0.0) as f32;
                 grads[k][ch] = t1 * g1 as f32 + t2 * g2 as f32;
             }
+            vals[k] = a;
         }
+        (vals, grads)
+    }
+
+    /// Vertex values and gradients for [`Reconstruction::Hermite`].
+    pub fn hermite(&self, elements: &[Element], values: &[Vec3]) -> Hermite {
+        let (mut vals, mut grads) = self.fit(elements, values);
         // T-vertices: the coarse edge's cubic at its midpoint (value, and slope along it).
         for &[v, a, b] in &self.hanging {
             let (v, a, b) = (v as usize, a as usize, b as usize);
