@@ -670,4 +670,42 @@ mod tests {
     fn command_line_definition_is_consistent() {
         Cli::command().debug_assert();
     }
+
+    #[test]
+    fn a_bare_scene_opens_the_viewer_and_subcommands_still_parse() {
+        // DESIGN.md §5: `radiosity [view] [SCENE]`.
+        let cli = Cli::try_parse_from(["radiosity", "room.gltf"]).unwrap();
+        assert_eq!(cli.scene.as_deref(), Some("room.gltf"));
+        assert!(cli.command.is_none());
+        let cli = Cli::try_parse_from(["radiosity", "solve", "builtin:cornell"]).unwrap();
+        assert!(matches!(cli.command, Some(Command::Solve { .. })));
+        let cli = Cli::try_parse_from(["radiosity"]).unwrap();
+        assert!(cli.scene.is_none() && cli.command.is_none());
+        let cli = Cli::try_parse_from([
+            "radiosity",
+            "render",
+            "builtin:cornell",
+            "--out",
+            "x.png",
+            "--size",
+            "64x48",
+            "--camera",
+            "-30,10,1.5",
+            "--mode",
+            "hermite",
+        ])
+        .unwrap();
+        match cli.command {
+            Some(Command::Render { view, .. }) => {
+                assert_eq!(view.size, (64, 48));
+                assert_eq!(view.camera, Some((-30.0, 10.0, 1.5)));
+                assert_eq!(view.mode, Reconstruction::Hermite);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(
+            Cli::try_parse_from(["radiosity", "render", "s", "--out", "x", "--size", "0x5"])
+                .is_err()
+        );
+    }
 }
