@@ -104,6 +104,8 @@ struct Vertex {
     element: u32,
     vertex: u32,
     object: u32,
+    /// Barycentric coordinates within the element (for the wireframe and Hermite).
+    bary: [f32; 3],
 }
 
 /// Pipeline and uniforms: one per device.
@@ -267,7 +269,7 @@ impl Renderer {
                 buffers: &[Some(wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<Vertex>() as u64,
                     step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32],
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32, 4 => Float32x3],
                 })],
                 compilation_options: Default::default(),
             },
@@ -317,18 +319,7 @@ impl Renderer {
     /// Uploads `mesh`'s elements (one vertex per corner) and makes its value textures.
     pub fn upload(&self, device: &wgpu::Device, mesh: &Mesh) -> GpuMesh {
         use wgpu::util::DeviceExt;
-        let mut vertices = Vec::with_capacity(mesh.elements.len() * 3);
-        for (i, e) in mesh.elements.iter().enumerate() {
-            let object = mesh.patches[e.patch as usize].object;
-            for k in 0..3 {
-                vertices.push(Vertex {
-                    position: e.verts[k].to_array(),
-                    element: i as u32,
-                    vertex: e.corners[k],
-                    object,
-                });
-            }
-        }
+        let vertices = triangles(mesh);
         let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("radiosity view vertices"),
             contents: if vertices.is_empty() {
@@ -629,4 +620,87 @@ pub fn bezier_points(mesh: &Mesh, radiosity: &[Vec3]) -> Vec<Bezier> {
     (0..mesh.elements.len() as u32)
         .map(|e| crate::mesh::DisplayMesh::bezier(&mesh.elements, &h, e))
         .collect()
+}
+
+/// The element triangles to draw, conforming at T-vertices: an element with a finer
+/// neighbour's vertex at the midpoint of one of its edges is drawn as two to four
+/// triangles through that vertex, so the rasteriser sees no T-junction (which leaves
+/// pixel cracks showing the background). Values are unchanged: a T-vertex carries the
+/// coarse edge's value, and every vertex carries its barycentric coordinates within the
+/// element for the wireframe and Hermite shading.
+fn triangles(mesh: &Mesh) -> Vec<Vertex> {
+    use std::collections::HashMap;
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let midpoints: HashMap<(u32, u32), u32> = mesh
+        .display
+        .hanging
+        .iter()
+        .map(|&[v, a, b]| (key(a, b), v))
+        .collect();
+    let mut out = Vec::with_capacity(mesh.elements.len() * 3);
+    for (i, e) in mesh.elements.iter().enumerate() {
+        let object = mesh.patches[e.patch as usize].object;
+        let c = e.corners;
+        let corner = |k: usize| {
+            let mut b = [0.0f32; 3];
+            b[k] = 1.0;
+            (e.verts[k], c[k], b)
+        };
+        // The hanging vertex on edge k (corners k, k+1), if any.
+        let mid: [Option<(Vec3, u32, [f32; 3])>; 3] = std::array::from_fn(|k| {
+            let (a, b) = (c[k], c[(k + 1) % 3]);
+            midpoints.get(&key(a, b)).map(|&v| {
+                let mut bary = [0.0f32; 3];
+                bary[k] = 0.5;
+                bary[(k + 1) % 3] = 0.5;
+                ((e.verts[k] + e.verts[(k + 1) % 3]) * 0.5, v, bary)
+            })
+        });
+        let mut tri = |p: [(Vec3, u32, [f32; 3]); 3]| {
+            for (position, vertex, bary) in p {
+                out.push(Vertex {
+                    position: position.to_array(),
+                    element: i as u32,
+                    vertex,
+                    object,
+                    bary,
+                });
+            }
+        };
+        match mid {
+            [None, None, None] => tri([corner(0), corner(1), corner(2)]),
+            [Some(m01), Some(m12), Some(m20)] => {
+                tri([corner(0), m01, m20]);
+                tri([m01, corner(1), m12]);
+                tri([m20, m12, corner(2)]);
+                tri([m01, m12, m20]);
+            }
+            _ => {
+                // One or two midpoints: rotate so that edge k = 0 has one, then split.
+                let k = (0..3).find(|&k| mid[k].is_some()).unwrap_or(0);
+                let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+                let m = mid[k].unwrap_or(corner(k));
+                match (mid[k1], mid[k2]) {
+                    (None, None) => {
+                        tri([corner(k), m, corner(k2)]);
+                        tri([m, corner(k1), corner(k2)]);
+                    }
+                    (Some(n), None) => {
+                        // Midpoints on edges (k, k1) and (k1, k2).
+                        tri([m, corner(k1), n]);
+                        tri([corner(k), m, n]);
+                        tri([corner(k), n, corner(k2)]);
+                    }
+                    (None, Some(n)) => {
+                        // Midpoints on edges (k, k1) and (k2, k).
+                        tri([corner(k), m, n]);
+                        tri([m, corner(k1), corner(k2)]);
+                        tri([n, m, corner(k2)]);
+                    }
+                    (Some(_), Some(_)) => unreachable!("all three are handled above"),
+                }
+            }
+        }
+    }
+    out
 }

@@ -35,6 +35,9 @@ struct VertexIn {
     @location(1) element: u32,
     @location(2) vertex: u32,
     @location(3) object: u32,
+    // Barycentric coordinates within the element (an element may be drawn as several
+    // triangles where a finer neighbour's vertex lies on its edge).
+    @location(4) bary: vec3<f32>,
 };
 
 struct VertexOut {
@@ -53,13 +56,12 @@ fn fetch(t: texture_2d<f32>, i: u32) -> vec3<f32> {
 }
 
 @vertex
-fn vs_main(v: VertexIn, @builtin(vertex_index) index: u32) -> VertexOut {
+fn vs_main(v: VertexIn) -> VertexOut {
     var o: VertexOut;
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
     o.smooth_b = fetch(vertex_values, v.vertex);
     o.flat_b = fetch(element_values, v.element);
-    let k = index % 3u;
-    o.bary = vec3<f32>(f32(k == 0u), f32(k == 1u), f32(k == 2u));
+    o.bary = v.bary;
     o.selected = select(0.0, 1.0, v.object == u.selected);
     o.element = f32(v.element);
     return o;
