@@ -258,6 +258,27 @@ pub struct Solver {
     captured_power: f64,
 }
 
+/// The first-bounce irradiance factor h_i of the external lights (punctual, sun, sky) at
+/// element `i`, so that E'_i = E_i + ρ_i h_i, and the rays cast; zero without external
+/// light. Seeded by the element's geometry.
+fn external_factor(mesh: &Mesh, bvh: &Bvh, external: &ExternalLight, i: usize) -> (Vec3, u32) {
+    if external.lights.is_empty() && external.environment.is_none() {
+        return (Vec3::ZERO, 0);
+    }
+    let e = &mesh.elements[i];
+    let p = &mesh.patches[e.patch as usize];
+    let (h, rays) = lighting::irradiance(
+        mesh,
+        bvh,
+        external,
+        e.centroid(),
+        e.normal,
+        p.scene_triangle,
+        form_factor::element_seed(e),
+    );
+    (if h.is_finite() { h } else { Vec3::ZERO }, rays)
+}
+
 /// Per-element values carried through a refinement: children start from their parent's.
 fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Vec<T> {
     let mut out = vec![T::default(); n];
@@ -483,7 +504,6 @@ impl Solver {
         // Re-evaluate the children: external light, and (progressive) what has been shot.
         let mesh = Arc::clone(&self.mesh);
         let (bvh, external, ff) = (&self.bvh, &self.external, self.settings.form_factors);
-        let has_external = !external.lights.is_empty() || external.environment.is_some();
         let progressive = self.settings.method == Method::Progressive;
         let shot_total = &self.shot_total;
         let needed = |q: usize| had_rows || (progressive && shot_total[q] != DVec3::ZERO);
@@ -494,21 +514,7 @@ impl Solver {
             .par_iter()
             .map(|&c| {
                 let c = c as usize;
-                let e = &mesh.elements[c];
-                let p = &mesh.patches[e.patch as usize];
-                let (h, mut rays) = if has_external {
-                    lighting::irradiance(
-                        &mesh,
-                        bvh,
-                        external,
-                        e.centroid(),
-                        e.normal,
-                        p.scene_triangle,
-                        form_factor::element_seed(e),
-                    )
-                } else {
-                    (Vec3::ZERO, 0)
-                };
+                let (h, mut rays) = external_factor(&mesh, bvh, external, c);
                 let mut gathered = DVec3::ZERO;
                 let mut row = Vec::new();
                 for (q, total) in shot_total.iter().enumerate() {
@@ -522,7 +528,6 @@ impl Solver {
                         row.push((q as u32, f));
                     }
                 }
-                let h = if h.is_finite() { h } else { Vec3::ZERO };
                 (h, gathered, row, rays as u64)
             })
             .collect();
@@ -583,13 +588,7 @@ impl Solver {
             }
         }
         self.stats.elements = n;
-        self.stats.source_power = self
-            .source
-            .iter()
-            .zip(&self.mesh.elements)
-            .map(|(s, e)| sum3(*s) * e.area as f64)
-            .sum();
-        self.power_scale = self.power_scale.max(self.stats.source_power);
+        self.update_source_power();
         self.stats.converged = false;
         self.mesh_version += 1;
         self.phase = Phase::Iterating;
@@ -733,13 +732,7 @@ impl Solver {
         if matches!(self.phase, Phase::Lighting(_)) {
             return; // the source power is summed when lighting finishes
         }
-        self.stats.source_power = self
-            .source
-            .iter()
-            .zip(&mesh.elements)
-            .map(|(s, e)| sum3(*s) * e.area as f64)
-            .sum();
-        self.power_scale = self.power_scale.max(self.stats.source_power);
+        self.update_source_power();
         self.stats.converged = false;
         match self.settings.method {
             Method::StochasticJacobi => {
@@ -818,6 +811,18 @@ impl Solver {
         }
     }
 
+    /// Sets the source power Σ A_i E'_i (summed over RGB) from the current sources, and
+    /// raises the unshot-fraction scale to it.
+    fn update_source_power(&mut self) {
+        self.stats.source_power = self
+            .source
+            .iter()
+            .zip(&self.mesh.elements)
+            .map(|(s, e)| sum3(*s) * e.area as f64)
+            .sum();
+        self.power_scale = self.power_scale.max(self.stats.source_power);
+    }
+
     /// Elements per parallel chunk: large enough to amortise scheduling, small enough to
     /// return within a step budget.
     const CHUNK: usize = 256;
@@ -828,30 +833,11 @@ impl Solver {
         let mesh = &self.mesh;
         let bvh = &self.bvh;
         let external = &self.external;
-        let has_external = !external.lights.is_empty() || external.environment.is_some();
         let (reflectance, emission) = (&self.reflectance, &self.emission);
         let results: Vec<(Vec3, u32)> = (next..end)
             .into_par_iter()
             .with_min_len(16)
-            .map(|i| {
-                let e = &mesh.elements[i];
-                let p = &mesh.patches[e.patch as usize];
-                let (h, rays): (Vec3, u32) = if has_external {
-                    lighting::irradiance(
-                        mesh,
-                        bvh,
-                        external,
-                        e.centroid(),
-                        e.normal,
-                        p.scene_triangle,
-                        form_factor::element_seed(e),
-                    )
-                } else {
-                    (Vec3::ZERO, 0)
-                };
-                let h = if h.is_finite() { h } else { Vec3::ZERO };
-                (h, rays)
-            })
+            .map(|i| external_factor(mesh, bvh, external, i))
             .collect();
         for (k, (h, rays)) in results.into_iter().enumerate() {
             let i = next + k;
@@ -868,13 +854,7 @@ impl Solver {
             self.phase = Phase::Lighting(end);
             return;
         }
-        self.stats.source_power = self
-            .source
-            .iter()
-            .zip(&self.mesh.elements)
-            .map(|(s, e)| sum3(*s) * e.area as f64)
-            .sum();
-        self.power_scale = self.power_scale.max(self.stats.source_power);
+        self.update_source_power();
         self.phase = match self.settings.method {
             Method::Progressive | Method::StochasticJacobi => Phase::Iterating,
             _ => Phase::Rows(0),

@@ -7,6 +7,7 @@
 //! snapshots cannot stall frames.
 
 use super::camera::Camera;
+use super::percentile;
 use super::render::{Display, GpuMesh, Renderer, Target, ToneMap};
 use crate::accel::Bvh;
 use crate::mesh::{Mesh, MeshSettings, Reconstruction};
@@ -225,15 +226,6 @@ fn load_recent() -> Vec<String> {
                 .collect()
         })
         .unwrap_or_default()
-}
-
-/// Percentile `q` in [0, 1] of `v` (sorted in place).
-fn percentile(v: &mut [f32], q: f32) -> f32 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[((v.len() - 1) as f32 * q).round() as usize]
 }
 
 /// The turbo colour map (Mikhailov 2019), the same polynomial as the shader's; sRGB.

@@ -17,6 +17,15 @@ use camera::Camera;
 use glam::Vec3;
 use std::path::Path;
 
+/// Percentile `q` in [0, 1] of `v` (sorted in place; 0 when empty).
+pub(crate) fn percentile(v: &mut [f32], q: f32) -> f32 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f32 * q).round() as usize]
+}
+
 /// Encodes `image` as PNG and writes it atomically (temporary file, then rename).
 pub fn write_png(path: &Path, image: &image::RgbaImage) -> Result<()> {
     let mut bytes = Vec::new();
@@ -115,8 +124,7 @@ pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32)
     if lit.is_empty() {
         return None;
     }
-    lit.sort_by(|a, b| a.total_cmp(b));
-    let p95 = lit[((lit.len() - 1) as f32 * 0.95).round() as usize];
+    let p95 = percentile(&mut lit, 0.95);
     let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
     Some((ev, (p95.log10() - 3.0, top.max(p95).log10())))
 }

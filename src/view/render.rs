@@ -194,14 +194,21 @@ fn value_texture(device: &wgpu::Device, n: usize, label: &str) -> wgpu::Texture 
 }
 
 fn write_values(queue: &wgpu::Queue, texture: &wgpu::Texture, values: &[Vec3]) {
-    if values.is_empty() {
+    write_texels(
+        queue,
+        texture,
+        values.iter().map(|v| [v.x, v.y, v.z, 1.0]).collect(),
+    );
+}
+
+/// Writes `data` (one RGBA texel each, in index order) into the first rows of `texture`,
+/// padding the last row.
+fn write_texels(queue: &wgpu::Queue, texture: &wgpu::Texture, mut data: Vec<[f32; 4]>) {
+    if data.is_empty() {
         return;
     }
-    let rows = (values.len() as u32).div_ceil(VALUE_WIDTH);
-    let mut data = vec![[0.0f32; 4]; (rows * VALUE_WIDTH) as usize];
-    for (d, v) in data.iter_mut().zip(values) {
-        *d = [v.x, v.y, v.z, 1.0];
-    }
+    let rows = (data.len() as u32).div_ceil(VALUE_WIDTH);
+    data.resize((rows * VALUE_WIDTH) as usize, [0.0; 4]);
     queue.write_texture(
         texture.as_image_copy(),
         bytemuck::cast_slice(&data),
@@ -479,8 +486,7 @@ impl GpuMesh {
         if points.len() != self.elements {
             return false;
         }
-        // 30 floats per element padded to 32, written through the vec4 writer as 8 texels:
-        // regroup the floats 4 at a time.
+        // 30 floats per element padded to 32: 8 RGBA texels.
         let mut floats: Vec<f32> = Vec::with_capacity(points.len() * 32);
         for b in points {
             for p in b {
@@ -488,22 +494,11 @@ impl GpuMesh {
             }
             floats.extend_from_slice(&[0.0, 0.0]);
         }
-        let rows = ((floats.len() / 4) as u32).div_ceil(VALUE_WIDTH);
-        floats.resize((rows * VALUE_WIDTH * 4) as usize, 0.0);
-        queue.write_texture(
-            t.as_image_copy(),
-            bytemuck::cast_slice(&floats),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(VALUE_WIDTH * 16),
-                rows_per_image: None,
-            },
-            wgpu::Extent3d {
-                width: VALUE_WIDTH,
-                height: rows,
-                depth_or_array_layers: 1,
-            },
-        );
+        let texels = floats
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect();
+        write_texels(queue, t, texels);
         true
     }
 }
