@@ -3,8 +3,12 @@
 //! neighbours' by more than a perceptual contrast are split into four, down to a minimum
 //! size, keeping vertex-sharing elements within one level of each other (2:1 balance).
 //!
-//! The criterion works in log luminance, so a 20 % step reads the same in a dark corner
-//! as beside the light; values below a small fraction of the mean (`floor`) are treated as
+//! Two criteria, both in log luminance (so a 20 % step reads the same in a dark corner as
+//! beside the light): the contrast between an element and a vertex-sharing neighbour
+//! (`threshold`), and how far the element's value lies from the Gouraud reconstruction at
+//! its centroid (`threshold / 20`: the curvature that linear interpolation misses, which
+//! a contrast test cannot see in a smooth ramp and which concentrates at the kinks of
+//! penumbrae and umbrae); values below a small fraction of the mean (`floor`) are treated as
 //! that floor, so noise in near-black regions does not drive refinement.
 //!
 //! [`Mesh::refine`] rewrites the element array (each patch's leaves stay contiguous) and
@@ -59,8 +63,8 @@ pub fn size(e: &Element) -> f64 {
 
 impl Mesh {
     /// Elements to split for `values` (per-element radiosity): log-luminance contrast to a
-    /// vertex-sharing neighbour above `threshold`, size above `min_size` (splitting halves
-    /// it). Not yet balanced: add other criteria, then call [`Mesh::balance`].
+    /// vertex-sharing neighbour above `threshold`, or a Gouraud reconstruction error at the
+    /// centroid above `threshold / 20`; size above `min_size` (splitting halves it). Not yet balanced: add other criteria, then call [`Mesh::balance`].
     pub fn mark_for_refinement(&self, values: &[Vec3], threshold: f32, min_size: f64) -> Vec<bool> {
         let n = self.elements.len();
         let nv = self.display.positions.len();
@@ -92,16 +96,29 @@ impl Mesh {
                 hi[c as usize] = hi[c as usize].max(l);
             }
         }
+        // Reconstruction error: the element's own value against the Gouraud reconstruction
+        // at its centroid (the mean of its vertex values, each a least-squares plane fit
+        // of the elements around it). Zero for linear light whatever the step between
+        // neighbours; large where the light bends within a few elements (the edges of
+        // penumbrae and umbrae, hot spots), which is where linear reconstruction errs.
+        // Its tolerance is a twentieth of the contrast threshold (1 % at the default 0.2):
+        // the error it measures is what the viewer shows, while a contrast step is only a
+        // sign of it.
+        let vertex = self.display.vertex_values(&self.elements, values);
+        let tolerance = threshold / 20.0;
         let mut marked = vec![false; n];
         for (i, (e, v)) in self.elements.iter().zip(values).enumerate() {
             if size(e) * 0.5 < min_size * 0.999 {
                 continue;
             }
             let l = log(*v);
-            marked[i] = e.corners.iter().any(|&c| {
+            let step = e.corners.iter().any(|&c| {
                 let c = c as usize;
                 (hi[c] - l).max(l - lo[c]) > threshold
             });
+            let mean = e.corners.iter().map(|&c| vertex[c as usize]).sum::<Vec3>() / 3.0;
+            let curved = (log(mean) - l).abs() > tolerance;
+            marked[i] = step || curved;
         }
         marked
     }

@@ -263,7 +263,15 @@ pub fn element_to_patch(
         return (f * lo, samples);
     }
     let mut rays = samples;
-    let kp = ((settings.penumbra_rays.max(1) as f32).sqrt().ceil() as u32).min(16);
+    // Penumbra strata: at least `penumbra_rays`, more for pairs that carry much light.
+    // Stratified visibility errs by about f·k^-1.5 (the ~k boundary strata each miss a
+    // random part of 1/k² of the patch), so k grows as (f / F_REF)^(2/3) to keep that
+    // absolute error near its value for a pair of F_REF, up to the 16 × 16 cap: small,
+    // refined elements in the penumbra of a main light then get values as sharp as their
+    // size, while the many weak pairs keep the base count.
+    const F_REF: f32 = 0.01;
+    let base = (settings.penumbra_rays.max(1) as f32).sqrt();
+    let kp = ((base * (f / F_REF).powf(2.0 / 3.0).max(1.0)).ceil() as u32).min(16);
     let k = if kp > k {
         let seed = hash(seed);
         for s in 0..kp * kp {
