@@ -148,7 +148,10 @@ fn main() {
         let (eq, saving) = match m.strip_prefix("adaptive ") {
             Some(mode) => match uniform_equivalent(mode, *r) {
                 Some(u) => {
-                    println!("{m:<17} {s:<28} {n:>6} elements: uniform needs {u:>7.0} ({:.2}×)", u / *n as f64);
+                    println!(
+                        "{m:<17} {s:<28} {n:>6} elements: uniform needs {u:>7.0} ({:.2}×)",
+                        u / *n as f64
+                    );
                     (format!("{u:.0}"), format!("{:.2}", u / *n as f64))
                 }
                 None => (String::new(), String::new()),

@@ -207,6 +207,10 @@ pub struct SolveOptions {
     /// Most elements when --element-size is not given.
     #[arg(long)]
     pub max_elements: Option<usize>,
+    /// Do not split triangles along the lines where other surfaces touch or pierce them
+    /// (D0 discontinuity meshing is on by default).
+    #[arg(long)]
+    pub no_contact_lines: bool,
     /// Uniform sky radiance, W/(m²·sr): one value or r,g,b. Default for scenes without light: 1.
     #[arg(long, value_parser = parse_rgb)]
     pub sky: Option<Vec3>,
@@ -269,6 +273,7 @@ impl SolveOptions {
         MeshSettings {
             element_size: self.element_size,
             max_elements: self.max_elements,
+            no_contact_lines: self.no_contact_lines,
         }
     }
 

@@ -216,7 +216,12 @@ impl Mesh {
             self.patches[p].elements = first..elements.len() as u32;
         }
         self.elements = elements;
-        self.display = super::DisplayMesh::build(&mut self.elements, &self.patches, self.scale);
+        self.display = super::DisplayMesh::build(
+            &mut self.elements,
+            &self.patches,
+            &self.cut_edges,
+            self.scale,
+        );
         moved
     }
 }

@@ -56,23 +56,43 @@ pub struct DisplayMesh {
 
 impl DisplayMesh {
     /// Welds the corners of `elements` into shared vertices and records them in
-    /// `Element::corners`. Positions closer than `scale × 1e-6` are the same point.
-    pub fn build(elements: &mut [Element], patches: &[Patch], scale: f32) -> DisplayMesh {
+    /// `Element::corners`. Positions closer than `scale × 1e-6` are the same point; points
+    /// on a contact line (`cut_edges`, see `Patch::cuts`) are shared only by patches of the
+    /// same region, so the light may jump across the line.
+    pub fn build(
+        elements: &mut [Element],
+        patches: &[Patch],
+        cut_edges: &[[Vec3; 2]],
+        scale: f32,
+    ) -> DisplayMesh {
         let cos_smooth = SMOOTH_ANGLE_DEG.to_radians().cos();
         let quantum = (scale * 1e-6).max(f32::MIN_POSITIVE);
+        let on_line = (scale * 1e-5).max(f32::MIN_POSITIVE);
         let mut mesh = DisplayMesh::default();
-        // Key: quantised position, material, side → candidate vertices.
-        let mut welded: HashMap<([i64; 3], u32, bool), Vec<u32>> = HashMap::new();
+        // Key: quantised position, material, side, region on a contact line (else MAX)
+        // → candidate vertices.
+        let key = |p: Vec3, patch: &Patch| {
+            let q = (p / quantum).round();
+            let on_cut = patch.cuts.clone().any(|c| {
+                let [a, b] = cut_edges[c as usize];
+                let ab = b - a;
+                let t =
+                    ((p - a).dot(ab) / ab.length_squared().max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
+                (a + ab * t - p).length() <= on_line
+            });
+            (
+                [q.x as i64, q.y as i64, q.z as i64],
+                patch.material,
+                patch.back,
+                if on_cut { patch.region } else { u32::MAX },
+            )
+        };
+        let mut welded: HashMap<([i64; 3], u32, bool, u32), Vec<u32>> = HashMap::new();
         for e in elements.iter_mut() {
             let patch = &patches[e.patch as usize];
             for k in 0..3 {
                 let p = e.verts[k];
-                let q = (p / quantum).round();
-                let key = (
-                    [q.x as i64, q.y as i64, q.z as i64],
-                    patch.material,
-                    patch.back,
-                );
+                let key = key(p, patch);
                 let slots = welded.entry(key).or_default();
                 let found = slots
                     .iter()
@@ -99,13 +119,7 @@ impl DisplayMesh {
             for k in 0..3 {
                 let (a, b) = (e.corners[k], e.corners[(k + 1) % 3]);
                 let m = (e.verts[k] + e.verts[(k + 1) % 3]) * 0.5;
-                let q = (m / quantum).round();
-                let key = (
-                    [q.x as i64, q.y as i64, q.z as i64],
-                    patch.material,
-                    patch.back,
-                );
-                if let Some(slots) = welded.get(&key)
+                if let Some(slots) = welded.get(&key(m, patch))
                     && let Some(&v) = slots
                         .iter()
                         .find(|&&v| mesh.normals[v as usize].dot(e.normal) >= cos_smooth)

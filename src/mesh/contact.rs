@@ -1,0 +1,428 @@
+//! D0 discontinuity meshing: where another surface touches or pierces a triangle (a box
+//! standing on a floor, a lamp set flush under a ceiling, a wall through a slab), the
+//! radiosity on the triangle jumps along the line of contact: light on one side, the
+//! hidden, dark underside on the other. Refining elements down to a minimum size only
+//! narrows the band where the two are averaged; splitting the triangle *along the line*
+//! removes it (Lischinski, Tampieri & Greenberg, "Discontinuity meshing for accurate
+//! radiosity", IEEE CG&A 1992, §3: D0 discontinuities are found from the geometry alone,
+//! before any light is computed).
+//!
+//! For each receiving triangle R this module finds the contact segments: every other
+//! triangle T that crosses R's plane, or has an edge or its whole face within a small
+//! tolerance of it, meets the plane in a segment (the crossing line, the touching edge,
+//! or the coplanar face's edges), clipped to R. Segments along R's own edges (its
+//! neighbours in a closed mesh) cut nothing and are dropped. R is then triangulated with
+//! the segments as constraints (a constrained Delaunay triangulation, `spade`, which also
+//! splits constraints where they cross), and the pieces are grouped into *regions*: pieces
+//! connected without crossing a contact segment. The display mesh does not weld vertices
+//! on a contact segment across regions, so Gouraud and Hermite shading jump there instead
+//! of smearing the dark underside into the lit floor.
+
+use glam::{DVec2, DVec3, Vec3};
+use spade::{
+    AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation,
+};
+
+/// One piece of a split triangle: its vertices (same orientation as the triangle), its
+/// region (pieces of the same region meet without crossing a contact segment), and the
+/// contact segments lying along its edges.
+pub(super) struct Piece {
+    pub verts: [Vec3; 3],
+    pub region: u32,
+    pub cuts: Vec<[Vec3; 2]>,
+}
+
+/// Axis-aligned box of a triangle, grown by `pad`.
+fn bounds(t: &[Vec3; 3], pad: f32) -> (Vec3, Vec3) {
+    let lo = t[0].min(t[1]).min(t[2]) - Vec3::splat(pad);
+    let hi = t[0].max(t[1]).max(t[2]) + Vec3::splat(pad);
+    (lo, hi)
+}
+
+/// Pairs (i, j), i ≠ j, of `triangles` whose boxes (grown by `pad`) overlap, for the `i`
+/// in `receivers`; sweep and prune along the longest axis of the scene.
+fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> Vec<(u32, u32)> {
+    let boxes: Vec<(Vec3, Vec3)> = triangles.iter().map(|t| bounds(t, pad)).collect();
+    let (lo, hi) = boxes.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(a, b), (l, h)| (a.min(*l), b.max(*h)),
+    );
+    let ext = hi - lo;
+    let axis = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
+    let mut order: Vec<u32> = (0..triangles.len() as u32)
+        .filter(|&i| boxes[i as usize].0.is_finite() && boxes[i as usize].1.is_finite())
+        .collect();
+    order.sort_by(|&a, &b| boxes[a as usize].0[axis].total_cmp(&boxes[b as usize].0[axis]));
+    let mut pairs = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let (li, hi_) = boxes[i as usize];
+        for &j in &order[k + 1..] {
+            let (lj, hj) = boxes[j as usize];
+            if lj[axis] > hi_[axis] {
+                break;
+            }
+            if li.cmple(hj).all() && lj.cmple(hi_).all() {
+                if receivers[i as usize] {
+                    pairs.push((i, j));
+                }
+                if receivers[j as usize] {
+                    pairs.push((j, i));
+                }
+            }
+        }
+    }
+    pairs
+}
+
+/// The segment where triangle `t` meets the plane of `r` (points within `tol` of the
+/// plane count as on it), clipped to `r`; `None` when they do not meet in a segment
+/// longer than `min_len` inside `r`, or when it runs along an edge of `r`. A face lying
+/// in the plane yields its edges (up to three segments).
+fn contact_segments(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Vec<[DVec3; 2]> {
+    let r = r.map(|v| v.as_dvec3());
+    let t = t.map(|v| v.as_dvec3());
+    let n = (r[1] - r[0]).cross(r[2] - r[0]);
+    let len = n.length();
+    if len <= 0.0 || !len.is_finite() {
+        return Vec::new();
+    }
+    let n = n / len;
+    let d = t.map(|v| (v - r[0]).dot(n));
+    let on = d.map(|x| x.abs() <= tol);
+    let mut raw: Vec<[DVec3; 2]> = Vec::new();
+    if on.iter().all(|&o| o) {
+        for k in 0..3 {
+            raw.push([t[k], t[(k + 1) % 3]]);
+        }
+    } else {
+        let mut pts: Vec<DVec3> = Vec::new();
+        for k in 0..3 {
+            if on[k] {
+                pts.push(t[k]);
+            }
+            let (a, b) = (k, (k + 1) % 3);
+            if !on[a] && !on[b] && (d[a] > 0.0) != (d[b] > 0.0) {
+                let s = d[a] / (d[a] - d[b]);
+                pts.push(t[a] + (t[b] - t[a]) * s);
+            }
+        }
+        if pts.len() >= 2 {
+            // The two farthest apart (three points only when a vertex lies on the plane
+            // and the opposite edge crosses it: then they are collinear).
+            let mut best = (0, 1, -1.0);
+            for i in 0..pts.len() {
+                for j in i + 1..pts.len() {
+                    let l = (pts[i] - pts[j]).length_squared();
+                    if l > best.2 {
+                        best = (i, j, l);
+                    }
+                }
+            }
+            raw.push([pts[best.0], pts[best.1]]);
+        }
+    }
+    // Into r's plane, clipped to r (Cyrus–Beck against its three edges), dropped when
+    // short or along one of r's edges.
+    let mut out = Vec::new();
+    for [a, b] in raw {
+        let a = a - n * (a - r[0]).dot(n);
+        let b = b - n * (b - r[0]).dot(n);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let mut inside = true;
+        for k in 0..3 {
+            let (p, q) = (r[k], r[(k + 1) % 3]);
+            // Inward normal of edge k in the plane.
+            let m = n.cross(q - p);
+            let fa = (a - p).dot(m);
+            let fb = (b - p).dot(m);
+            if fa < 0.0 && fb < 0.0 {
+                inside = false;
+                break;
+            }
+            if fa < 0.0 {
+                t0 = t0.max(fa / (fa - fb));
+            } else if fb < 0.0 {
+                t1 = t1.min(fa / (fa - fb));
+            }
+        }
+        if !inside || t1 <= t0 {
+            continue;
+        }
+        let (ca, cb) = (a + (b - a) * t0, a + (b - a) * t1);
+        if (cb - ca).length() < min_len {
+            continue;
+        }
+        let along_edge = (0..3).any(|k| {
+            let (p, q) = (r[k], r[(k + 1) % 3]);
+            let e = (q - p).normalize_or_zero();
+            let off = |x: DVec3| {
+                let v = x - p;
+                (v - e * v.dot(e)).length()
+            };
+            off(ca) <= tol && off(cb) <= tol
+        });
+        if !along_edge {
+            out.push([ca, cb]);
+        }
+    }
+    out
+}
+
+/// Contact segments for every receiving triangle: `receivers[i]` says whether triangle
+/// `i` is meshed. `tol`: how close a surface must come to count as touching; `min_len`:
+/// shorter contacts are ignored (they are finer than the elements). Mesh frame, f32.
+pub(super) fn find_cuts(
+    triangles: &[[Vec3; 3]],
+    receivers: &[bool],
+    tol: f32,
+    min_len: f32,
+) -> Vec<Vec<[Vec3; 2]>> {
+    let mut cuts: Vec<Vec<[Vec3; 2]>> = vec![Vec::new(); triangles.len()];
+    for (i, j) in overlapping_pairs(triangles, receivers, tol) {
+        let (r, t) = (&triangles[i as usize], &triangles[j as usize]);
+        for [a, b] in contact_segments(r, t, tol as f64, min_len as f64) {
+            cuts[i as usize].push([a.as_vec3(), b.as_vec3()]);
+        }
+    }
+    cuts
+}
+
+/// Splits triangle `verts` along `cuts` (segments in its plane, inside it). `None` when
+/// the triangulation fails (then the triangle stays whole).
+pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> Option<Vec<Piece>> {
+    let v = verts.map(|p| p.as_dvec3());
+    // A 2D frame in the triangle's plane: origin v0, axes u (along v0→v1) and w.
+    let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+    let u = (v[1] - v[0]).normalize_or_zero();
+    let w = n.cross(u);
+    let to2 = |p: DVec3| {
+        let q = p - v[0];
+        Point2::new(q.dot(u), q.dot(w))
+    };
+    let to3 = |p: Point2<f64>| (v[0] + u * p.x + w * p.y).as_vec3();
+    let run = || -> Option<Vec<Piece>> {
+        let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
+            ConstrainedDelaunayTriangulation::new();
+        let corners = v.map(|p| cdt.insert(to2(p)));
+        let mut segments: Vec<_> = Vec::new();
+        for [a, b] in cuts {
+            let ha = cdt.insert(to2(a.as_dvec3())).ok()?;
+            let hb = cdt.insert(to2(b.as_dvec3())).ok()?;
+            segments.push((ha, hb));
+        }
+        for (ha, hb) in segments {
+            if ha != hb {
+                cdt.add_constraint_and_split(ha, hb, |p| p);
+            }
+        }
+        // The triangle's own edges are constraints too, kept whole by the refinement, so
+        // its neighbours see no new vertices on them (no T-junctions beyond the contact
+        // lines' own ends). The refinement then adds interior points until no angle is
+        // below 25° where the kept edges allow it: contact lines that end inside the
+        // triangle would otherwise leave long slivers fanning out to its corners, and
+        // slivers shade in streaks.
+        let corners: Vec<_> = corners.into_iter().collect::<Result<_, _>>().ok()?;
+        for k in 0..3 {
+            cdt.add_constraint_and_split(corners[k], corners[(k + 1) % 3], |p| p);
+        }
+        cdt.refine(
+            RefinementParameters::<f64>::new()
+                .with_angle_limit(AngleLimit::from_deg(25.0))
+                .keep_constraint_edges()
+                .with_max_additional_vertices(4096),
+        );
+        // Constraint edges: the contact lines and the triangle's edges. Only the former
+        // separate regions and go into `Piece::cuts`.
+        let c2 = v.map(|p| {
+            let q = to2(p);
+            DVec2::new(q.x, q.y)
+        });
+        let on_boundary = |p: Point2<f64>| {
+            let q = DVec2::new(p.x, p.y);
+            (0..3).any(|k| {
+                let (a, b) = (c2[k], c2[(k + 1) % 3]);
+                let len = (b - a).length().max(1e-300);
+                ((b - a).perp_dot(q - a) / len).abs() <= 1e-9 * len
+            })
+        };
+        let is_cut = |e: spade::handles::DirectedEdgeHandle<_, _, _, _>| {
+            if !cdt.is_constraint_edge(e.as_undirected().fix()) {
+                return false;
+            }
+            let [a, b] = e.positions();
+            !(on_boundary(a)
+                && on_boundary(b)
+                && on_boundary(Point2::new((a.x + b.x) * 0.5, (a.y + b.y) * 0.5)))
+        };
+        // Faces, their regions by flood fill across non-constraint edges.
+        let faces: Vec<_> = cdt.inner_faces().collect();
+        let index: std::collections::HashMap<_, usize> = faces
+            .iter()
+            .enumerate()
+            .map(|(k, f)| (f.fix(), k))
+            .collect();
+        let mut region = vec![u32::MAX; faces.len()];
+        let mut next = first_region;
+        for start in 0..faces.len() {
+            if region[start] != u32::MAX {
+                continue;
+            }
+            region[start] = next;
+            let mut stack = vec![start];
+            while let Some(k) = stack.pop() {
+                for e in faces[k].adjacent_edges() {
+                    if is_cut(e) {
+                        continue;
+                    }
+                    if let Some(other) = e.rev().face().as_inner()
+                        && let Some(&j) = index.get(&other.fix())
+                        && region[j] == u32::MAX
+                    {
+                        region[j] = next;
+                        stack.push(j);
+                    }
+                }
+            }
+            next += 1;
+        }
+        let mut pieces = Vec::with_capacity(faces.len());
+        for (k, f) in faces.iter().enumerate() {
+            let p = f.positions();
+            let mut t = p.map(to3);
+            // spade's faces are counter-clockwise in (u, w), which is the triangle's own
+            // orientation (n = u × w); keep it.
+            let nn = (t[1] - t[0]).cross(t[2] - t[0]);
+            if nn.dot(n.as_vec3()) < 0.0 {
+                t.swap(1, 2);
+            }
+            let cuts = f
+                .adjacent_edges()
+                .iter()
+                .filter(|e| is_cut(**e))
+                .map(|e| {
+                    let [a, b] = e.positions();
+                    [to3(a), to3(b)]
+                })
+                .collect();
+            pieces.push(Piece {
+                verts: t,
+                region: region[k],
+                cuts,
+            });
+        }
+        Some(pieces)
+    };
+    // The triangulation asserts on inputs it cannot handle; a triangle it cannot split
+    // stays whole rather than ending the load.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
+        .ok()
+        .flatten()
+        .filter(|p| !p.is_empty())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_box_on_a_floor_cuts_its_footprint() {
+        let floor = [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+        ];
+        // One side face of a box standing on the floor: its bottom edge lies in the floor
+        // from (0.2, 0, -0.5) to (0.6, 0, -0.5).
+        let side = [
+            Vec3::new(0.2, 0.0, -0.5),
+            Vec3::new(0.6, 0.0, -0.5),
+            Vec3::new(0.6, 0.3, -0.5),
+        ];
+        let s = contact_segments(&floor, &side, 1e-6, 1e-4);
+        assert_eq!(s.len(), 1);
+        let [a, b] = s[0];
+        assert!(
+            (a - DVec3::new(0.2, 0.0, -0.5)).length() < 1e-6
+                || (b - DVec3::new(0.2, 0.0, -0.5)).length() < 1e-6
+        );
+        assert!(((b - a).length() - 0.4).abs() < 1e-6);
+        // A wall crossing the floor: the crossing line, clipped to the floor triangle.
+        let wall = [
+            Vec3::new(0.5, -1.0, -3.0),
+            Vec3::new(0.5, -1.0, 3.0),
+            Vec3::new(0.5, 1.0, 0.0),
+        ];
+        let s = contact_segments(&floor, &wall, 1e-6, 1e-4);
+        assert_eq!(s.len(), 1);
+        for p in s[0] {
+            assert!((p.x - 0.5).abs() < 1e-6 && p.y.abs() < 1e-6);
+        }
+        // Its length inside the floor triangle (x = 0.5, z from -1 to 0.5).
+        assert!(((s[0][1] - s[0][0]).length() - 1.5).abs() < 1e-5);
+        // A neighbour sharing an edge cuts nothing.
+        let neighbour = [floor[0], Vec3::new(-1.0, 0.0, 1.0), floor[1]];
+        assert!(contact_segments(&floor, &neighbour, 1e-6, 1e-4).is_empty());
+        // Something above the floor cuts nothing.
+        let above = side.map(|p| p + Vec3::Y * 0.01);
+        assert!(contact_segments(&floor, &above, 1e-6, 1e-4).is_empty());
+    }
+
+    #[test]
+    fn splitting_keeps_area_orientation_and_separates_regions() {
+        let t = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, -2.0),
+        ];
+        // A closed square footprint inside the triangle.
+        let q = [
+            Vec3::new(0.2, 0.0, -0.2),
+            Vec3::new(0.6, 0.0, -0.2),
+            Vec3::new(0.6, 0.0, -0.6),
+            Vec3::new(0.2, 0.0, -0.6),
+        ];
+        let cuts: Vec<[Vec3; 2]> = (0..4).map(|k| [q[k], q[(k + 1) % 4]]).collect();
+        let pieces = split(t, &cuts, 7).expect("split");
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let area = |v: &[Vec3; 3]| 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length() as f64;
+        let total: f64 = pieces.iter().map(|p| area(&p.verts)).sum();
+        assert!((total - area(&t)).abs() < 1e-6, "{total}");
+        for p in &pieces {
+            let m = (p.verts[1] - p.verts[0]).cross(p.verts[2] - p.verts[0]);
+            assert!(m.dot(n) > 0.0, "orientation kept");
+        }
+        // Two regions: inside the square (area 0.16) and outside.
+        let mut regions: Vec<u32> = pieces.iter().map(|p| p.region).collect();
+        regions.sort();
+        regions.dedup();
+        assert_eq!(regions, vec![7, 8]);
+        let inside: f64 = pieces
+            .iter()
+            .filter(|p| {
+                let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+                c.x > 0.2 && c.x < 0.6 && c.z < -0.2 && c.z > -0.6
+            })
+            .map(|p| area(&p.verts))
+            .sum();
+        assert!((inside - 0.16).abs() < 1e-6, "{inside}");
+        let inside_region = pieces
+            .iter()
+            .find(|p| {
+                let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+                c.x > 0.2 && c.x < 0.6 && c.z < -0.2 && c.z > -0.6
+            })
+            .unwrap()
+            .region;
+        for p in &pieces {
+            let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+            let is_inside = c.x > 0.2 && c.x < 0.6 && c.z < -0.2 && c.z > -0.6;
+            assert_eq!(p.region == inside_region, is_inside);
+        }
+    }
+}
