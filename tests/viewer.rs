@@ -248,13 +248,16 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
     // Moving the short block 12 cm towards the green wall: the scene is meshed again, the
     // block's patches move by exactly that, the solve converges again; Ctrl+Z puts it back.
     let short = 2;
+    // Area-weighted, so it does not depend on how the faces are cut into patches (contact
+    // lines with the floor and the other block cut them differently before and after).
     let centroid = |a: &App| -> glam::DVec3 {
         let m = a.mesh().unwrap();
         let ps: Vec<_> = m.patches.iter().filter(|p| p.object == short).collect();
+        let area: f64 = ps.iter().map(|p| p.area as f64).sum();
         ps.iter()
-            .map(|p| p.centroid().as_dvec3())
+            .map(|p| p.centroid().as_dvec3() * p.area as f64)
             .sum::<glam::DVec3>()
-            / ps.len() as f64
+            / area
             + m.origin
     };
     let start = centroid(h.state());

@@ -84,19 +84,25 @@ fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> V
 /// plane count as on it), clipped to `r`; `None` when they do not meet in a segment
 /// longer than `min_len` inside `r`, or when it runs along an edge of `r`. A face lying
 /// in the plane yields its edges (up to three segments).
-fn contact_segments(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Vec<[DVec3; 2]> {
+fn contact_segments(
+    r: &[Vec3; 3],
+    t: &[Vec3; 3],
+    tol: f64,
+    min_len: f64,
+) -> (Vec<[DVec3; 2]>, bool) {
     let r = r.map(|v| v.as_dvec3());
     let t = t.map(|v| v.as_dvec3());
     let n = (r[1] - r[0]).cross(r[2] - r[0]);
     let len = n.length();
     if len <= 0.0 || !len.is_finite() {
-        return Vec::new();
+        return (Vec::new(), false);
     }
     let n = n / len;
     let d = t.map(|v| (v - r[0]).dot(n));
     let on = d.map(|x| x.abs() <= tol);
     let mut raw: Vec<[DVec3; 2]> = Vec::new();
-    if on.iter().all(|&o| o) {
+    let coplanar = on.iter().all(|&o| o);
+    if coplanar {
         for k in 0..3 {
             raw.push([t[k], t[(k + 1) % 3]]);
         }
@@ -171,7 +177,7 @@ fn contact_segments(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Vec
             out.push([ca, cb]);
         }
     }
-    out
+    (out, coplanar)
 }
 
 /// Contact segments for every receiving triangle: `receivers[i]` says whether triangle
@@ -183,14 +189,61 @@ pub(super) fn find_cuts(
     tol: f32,
     min_len: f32,
 ) -> Vec<Vec<[Vec3; 2]>> {
-    let mut cuts: Vec<Vec<[Vec3; 2]>> = vec![Vec::new(); triangles.len()];
+    // Per receiver: segments, and whether each came from a face lying in its plane.
+    let mut found: Vec<Vec<([DVec3; 2], bool)>> = vec![Vec::new(); triangles.len()];
     for (i, j) in overlapping_pairs(triangles, receivers, tol) {
         let (r, t) = (&triangles[i as usize], &triangles[j as usize]);
-        for [a, b] in contact_segments(r, t, tol as f64, min_len as f64) {
-            cuts[i as usize].push([a.as_vec3(), b.as_vec3()]);
+        let (segments, coplanar) = contact_segments(r, t, tol as f64, min_len as f64);
+        for s in segments {
+            found[i as usize].push((s, coplanar));
         }
     }
-    cuts
+    let tol = tol as f64;
+    let same = |a: &[DVec3; 2], b: &[DVec3; 2]| {
+        ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
+            || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
+    };
+    found
+        .into_iter()
+        .map(|segments| {
+            // An edge shared by two faces lying in the plane (the diagonal of a quad lamp
+            // flush with a ceiling, of a box's bottom) is inside the contact area, not
+            // its outline: drop it. Then drop duplicates (a box's bottom edge comes from
+            // its bottom face and from a side face).
+            let mut keep: Vec<[DVec3; 2]> = Vec::new();
+            for (k, (s, coplanar)) in segments.iter().enumerate() {
+                let interior = *coplanar
+                    && segments
+                        .iter()
+                        .enumerate()
+                        .any(|(m, (o, c))| m != k && *c && same(s, o));
+                if !interior && !keep.iter().any(|o| same(s, o)) {
+                    keep.push(*s);
+                }
+            }
+            keep.into_iter()
+                .map(|[a, b]| [a.as_vec3(), b.as_vec3()])
+                .collect()
+        })
+        .collect()
+}
+
+/// Panics raised inside `spade` (caught in [`split`]) are not reported on stderr: they
+/// are handled, and a user would read them as a crash. Every other panic is reported by
+/// the hook that was in place.
+fn quiet_spade_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let in_spade = info
+                .location()
+                .is_some_and(|l| l.file().contains("spade-") || l.file().contains("/spade/"));
+            if !in_spade {
+                previous(info);
+            }
+        }));
+    });
 }
 
 /// Splits triangle `verts` along `cuts` (segments in its plane, inside it). `None` when
@@ -206,16 +259,47 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> 
         Point2::new(q.dot(u), q.dot(w))
     };
     let to3 = |p: Point2<f64>| (v[0] + u * p.x + w * p.y).as_vec3();
-    let run = || -> Option<Vec<Piece>> {
+    let run = |refine: bool| -> Option<Vec<Piece>> {
         let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
             ConstrainedDelaunayTriangulation::new();
         let corners = v.map(|p| cdt.insert(to2(p)));
+        // Cut ends are snapped onto the triangle (a point a rounding error outside would
+        // grow the triangulation's hull by a sliver) and onto each other (ends of two
+        // segments meeting at a corner of a footprint), within 1e-6 of the triangle's size.
+        let c = v.map(to2).map(|p| DVec2::new(p.x, p.y));
+        let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
+        let snap = 1e-6 * size;
+        let twice_area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
+        let mut ends: Vec<(DVec2, _)> = Vec::new();
+        let mut place = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, p: Vec3| {
+            let q = to2(p.as_dvec3());
+            let q = DVec2::new(q.x, q.y);
+            // Barycentric coordinates; those within `snap` of an edge go to zero.
+            let mut b = [
+                (c[2] - c[1]).perp_dot(q - c[1]) / twice_area,
+                (c[0] - c[2]).perp_dot(q - c[2]) / twice_area,
+                0.0,
+            ];
+            b[2] = 1.0 - b[0] - b[1];
+            let tol = snap / size.max(1e-300);
+            let b = b.map(|x| if x < tol { 0.0 } else { x });
+            let sum: f64 = b.iter().sum();
+            let q = (c[0] * b[0] + c[1] * b[1] + c[2] * b[2]) / sum.max(1e-300);
+            if let Some(&(_, h)) = ends.iter().find(|(e, _)| (*e - q).length() <= snap) {
+                return Some(h);
+            }
+            let h = cdt.insert(Point2::new(q.x, q.y)).ok()?;
+            ends.push((q, h));
+            Some(h)
+        };
         let mut segments: Vec<_> = Vec::new();
         for [a, b] in cuts {
-            let ha = cdt.insert(to2(a.as_dvec3())).ok()?;
-            let hb = cdt.insert(to2(b.as_dvec3())).ok()?;
+            let ha = place(&mut cdt, *a)?;
+            let hb = place(&mut cdt, *b)?;
             segments.push((ha, hb));
         }
+        segments.sort_unstable_by_key(|&(a, b)| if a < b { (a, b) } else { (b, a) });
+        segments.dedup_by_key(|&mut (a, b)| if a < b { (a, b) } else { (b, a) });
         for (ha, hb) in segments {
             if ha != hb {
                 cdt.add_constraint_and_split(ha, hb, |p| p);
@@ -231,12 +315,14 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> 
         for k in 0..3 {
             cdt.add_constraint_and_split(corners[k], corners[(k + 1) % 3], |p| p);
         }
-        cdt.refine(
-            RefinementParameters::<f64>::new()
-                .with_angle_limit(AngleLimit::from_deg(25.0))
-                .keep_constraint_edges()
-                .with_max_additional_vertices(4096),
-        );
+        if refine {
+            cdt.refine(
+                RefinementParameters::<f64>::new()
+                    .with_angle_limit(AngleLimit::from_deg(25.0))
+                    .keep_constraint_edges()
+                    .with_max_additional_vertices(4096),
+            );
+        }
         // Constraint edges: the contact lines and the triangle's edges. Only the former
         // separate regions and go into `Piece::cuts`.
         let c2 = v.map(|p| {
@@ -320,10 +406,17 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> 
     };
     // The triangulation asserts on inputs it cannot handle; a triangle it cannot split
     // stays whole rather than ending the load.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
-        .ok()
-        .flatten()
-        .filter(|p| !p.is_empty())
+    // The triangulation asserts on inputs it cannot handle (its refinement, with the
+    // triangle's edges kept whole, can fail to place a point): then the triangle is split
+    // without refinement, and failing that it stays whole rather than ending the load.
+    quiet_spade_panics();
+    let attempt = |refine: bool| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(refine)))
+            .ok()
+            .flatten()
+            .filter(|p| !p.is_empty())
+    };
+    attempt(true).or_else(|| attempt(false))
 }
 
 #[cfg(test)]
@@ -344,7 +437,7 @@ mod tests {
             Vec3::new(0.6, 0.0, -0.5),
             Vec3::new(0.6, 0.3, -0.5),
         ];
-        let s = contact_segments(&floor, &side, 1e-6, 1e-4);
+        let (s, _) = contact_segments(&floor, &side, 1e-6, 1e-4);
         assert_eq!(s.len(), 1);
         let [a, b] = s[0];
         assert!(
@@ -358,7 +451,7 @@ mod tests {
             Vec3::new(0.5, -1.0, 3.0),
             Vec3::new(0.5, 1.0, 0.0),
         ];
-        let s = contact_segments(&floor, &wall, 1e-6, 1e-4);
+        let (s, _) = contact_segments(&floor, &wall, 1e-6, 1e-4);
         assert_eq!(s.len(), 1);
         for p in s[0] {
             assert!((p.x - 0.5).abs() < 1e-6 && p.y.abs() < 1e-6);
@@ -367,10 +460,14 @@ mod tests {
         assert!(((s[0][1] - s[0][0]).length() - 1.5).abs() < 1e-5);
         // A neighbour sharing an edge cuts nothing.
         let neighbour = [floor[0], Vec3::new(-1.0, 0.0, 1.0), floor[1]];
-        assert!(contact_segments(&floor, &neighbour, 1e-6, 1e-4).is_empty());
+        assert!(
+            contact_segments(&floor, &neighbour, 1e-6, 1e-4)
+                .0
+                .is_empty()
+        );
         // Something above the floor cuts nothing.
         let above = side.map(|p| p + Vec3::Y * 0.01);
-        assert!(contact_segments(&floor, &above, 1e-6, 1e-4).is_empty());
+        assert!(contact_segments(&floor, &above, 1e-6, 1e-4).0.is_empty());
     }
 
     #[test]
@@ -424,5 +521,69 @@ mod tests {
             let is_inside = c.x > 0.2 && c.x < 0.6 && c.z < -0.2 && c.z > -0.6;
             assert_eq!(p.region == inside_region, is_inside);
         }
+    }
+
+    #[test]
+    fn a_flush_quad_lamp_cuts_only_its_outline() {
+        // A ceiling triangle and, 0.1 mm under it, a quad lamp of two triangles facing
+        // down: four outline segments, not the quad's diagonal.
+        let ceiling = [
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(1.0, 1.0, -1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
+        let y = 1.0 - 1e-4;
+        let q = [
+            Vec3::new(-0.2, y, -0.2),
+            Vec3::new(0.2, y, -0.2),
+            Vec3::new(0.2, y, 0.2),
+            Vec3::new(-0.2, y, 0.2),
+        ];
+        let triangles = vec![ceiling, [q[0], q[2], q[1]], [q[0], q[3], q[2]]];
+        let cuts = find_cuts(&triangles, &[true, false, false], 2e-4, 1e-3);
+        assert_eq!(cuts[0].len(), 4, "{:?}", cuts[0]);
+        for [a, b] in &cuts[0] {
+            // Each runs along the outline: one coordinate stays at ±0.2.
+            let on_outline = ((a.x.abs() - 0.2).abs() < 1e-5 && (a.x - b.x).abs() < 1e-5)
+                || ((a.z.abs() - 0.2).abs() < 1e-5 && (a.z - b.z).abs() < 1e-5);
+            assert!(on_outline, "{a} {b}");
+        }
+        let pieces = split(ceiling, &cuts[0], 0).expect("split");
+        let regions: std::collections::HashSet<u32> = pieces.iter().map(|p| p.region).collect();
+        assert_eq!(regions.len(), 2);
+    }
+
+    #[test]
+    fn a_block_moved_into_another_still_splits() {
+        // The Cornell box's short block moved 12 cm towards the tall one: its faces cross,
+        // and one of them once made the refining triangulation fail.
+        let mut scene = crate::scene::builtin::cornell_box();
+        let short = scene
+            .objects
+            .iter()
+            .position(|o| o.name.contains("short"))
+            .expect("short block");
+        let o = &mut scene.objects[short];
+        o.world_from_local =
+            glam::DMat4::from_translation(glam::DVec3::new(-0.12, 0.0, 0.0)) * o.world_from_local;
+        let mesh = crate::mesh::Mesh::build(
+            &scene,
+            &crate::mesh::MeshSettings {
+                max_elements: Some(1500),
+                ..Default::default()
+            },
+        );
+        assert!(mesh.warnings.is_empty(), "{:?}", mesh.warnings);
+    }
+
+    #[test]
+    fn the_cornell_box_splits_cleanly() {
+        let mesh = crate::mesh::Mesh::build(
+            &crate::scene::builtin::cornell_box(),
+            &crate::mesh::MeshSettings::default(),
+        );
+        assert!(mesh.warnings.is_empty(), "{:?}", mesh.warnings);
+        // The two blocks' footprints on the floor and the lamp's outline on the ceiling.
+        assert!(mesh.cut_edges.len() >= 12, "{}", mesh.cut_edges.len());
     }
 }

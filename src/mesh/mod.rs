@@ -152,8 +152,13 @@ pub struct Mesh {
 }
 
 /// An input triangle in the mesh frame with everything the patches need.
+#[derive(Clone)]
 struct Source {
     verts: [Vec3; 3],
+    /// Region and contact segments (in `cut_edges`) of the piece of the input triangle
+    /// this is, after splitting along contact lines (see `Patch::region`).
+    region: u32,
+    cuts: Range<u32>,
     scene_triangle: u32,
     triangle: u32,
     object: u32,
@@ -274,6 +279,8 @@ impl Mesh {
                 clamped += was_clamped as usize;
                 sources.push(Source {
                     verts,
+                    region: 0,
+                    cuts: 0..0,
                     scene_triangle,
                     triangle: ti as u32,
                     object: oi as u32,
@@ -297,7 +304,43 @@ impl Mesh {
             ));
         }
         let total_area: f64 = sources.iter().map(|s| area(&s.verts) as f64).sum();
-        let element_size = choose_element_size(&sources, total_area, settings);
+        let mut element_size = choose_element_size(&sources, total_area, settings);
+        // D0 discontinuities: split each triangle along the lines where other surfaces
+        // touch or pierce it; contacts shorter than half an element are finer than the
+        // mesh and left to adaptive refinement. The element size is then chosen again for
+        // the pieces, so an element budget still holds; when even one element per piece
+        // would exceed it, the triangles stay whole.
+        let mut cut_edges: Vec<[Vec3; 2]> = Vec::new();
+        if !settings.no_contact_lines {
+            let mut receivers = vec![false; triangles.len()];
+            for s in &sources {
+                receivers[s.scene_triangle as usize] = true;
+            }
+            let cuts = contact::find_cuts(
+                &triangles,
+                &receivers,
+                scale * CONTACT_TOLERANCE,
+                (element_size * 0.5) as f32,
+            );
+            let (pieces, edges, unsplit) = split_sources(&sources, &cuts);
+            if unsplit > 0 {
+                warnings.push(format!(
+                    "{}: {unsplit} triangle(s) could not be split along their contact lines",
+                    scene.name
+                ));
+            }
+            if pieces.len() > sources.len() {
+                let coarsest: usize = pieces
+                    .iter()
+                    .map(|s| if s.double_sided { 2 } else { 1 })
+                    .sum();
+                if settings.max_elements.is_none_or(|b| coarsest <= b) {
+                    element_size = choose_element_size(&pieces, total_area, settings);
+                    sources = pieces;
+                    cut_edges = edges;
+                }
+            }
+        }
         let mut mesh = Mesh {
             origin,
             scale,
@@ -310,78 +353,20 @@ impl Mesh {
             element_size,
             warnings,
             triangle_patches: Vec::new(),
-            cut_edges: Vec::new(),
+            cut_edges,
         };
         mesh.triangle_patches = vec![0..0; mesh.triangles.len()];
         let patch_len = (element_size * PATCH_PER_ELEMENT) as f32;
-        // D0 discontinuities: split each triangle along the lines where other surfaces
-        // touch or pierce it; contacts shorter than half an element are finer than the
-        // mesh and left to adaptive refinement.
-        let mut receivers = vec![false; mesh.triangles.len()];
-        for s in &sources {
-            receivers[s.scene_triangle as usize] = true;
-        }
-        let cuts = if settings.no_contact_lines {
-            vec![Vec::new(); mesh.triangles.len()]
-        } else {
-            contact::find_cuts(
-                &mesh.triangles,
-                &receivers,
-                scale * CONTACT_TOLERANCE,
-                (element_size * 0.5) as f32,
-            )
-        };
-        let mut next_region = 0u32;
-        let mut unsplit = 0usize;
         let mut pieces = Vec::new();
         for s in &sources {
-            let c = &cuts[s.scene_triangle as usize];
-            let split = if c.is_empty() {
-                None
-            } else {
-                let r = contact::split(s.verts, c, next_region);
-                unsplit += r.is_none() as usize;
-                r
-            };
-            let split = split.unwrap_or_else(|| {
-                vec![contact::Piece {
-                    verts: s.verts,
-                    region: next_region,
-                    cuts: Vec::new(),
-                }]
-            });
-            next_region = split
-                .iter()
-                .map(|p| p.region + 1)
-                .max()
-                .unwrap_or(next_region);
-            for piece in split {
-                let first = mesh.cut_edges.len() as u32;
-                mesh.cut_edges.extend_from_slice(&piece.cuts);
-                let cut_range = first..mesh.cut_edges.len() as u32;
-                pieces.clear();
-                split_patches(piece.verts, patch_len, &mut pieces);
-                for side in 0..if s.double_sided { 2 } else { 1 } {
-                    for p in &pieces {
-                        let verts = if side == 0 { *p } else { [p[0], p[2], p[1]] };
-                        let depth = depth_for(area(p), element_size);
-                        mesh.push_patch(
-                            s,
-                            verts,
-                            side == 1,
-                            depth,
-                            piece.region,
-                            cut_range.clone(),
-                        );
-                    }
+            pieces.clear();
+            split_patches(s.verts, patch_len, &mut pieces);
+            for side in 0..if s.double_sided { 2 } else { 1 } {
+                for p in &pieces {
+                    let verts = if side == 0 { *p } else { [p[0], p[2], p[1]] };
+                    mesh.push_patch(s, verts, side == 1, depth_for(area(p), element_size));
                 }
             }
-        }
-        if unsplit > 0 {
-            mesh.warnings.push(format!(
-                "{}: {unsplit} triangle(s) could not be split along their contact lines",
-                scene.name
-            ));
         }
         mesh.display =
             DisplayMesh::build(&mut mesh.elements, &mesh.patches, &mesh.cut_edges, scale);
@@ -389,15 +374,7 @@ impl Mesh {
         mesh
     }
 
-    fn push_patch(
-        &mut self,
-        s: &Source,
-        verts: [Vec3; 3],
-        back: bool,
-        depth: u32,
-        region: u32,
-        cuts: Range<u32>,
-    ) {
+    fn push_patch(&mut self, s: &Source, verts: [Vec3; 3], back: bool, depth: u32) {
         let n = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
         let first = self.elements.len() as u32;
         let patch = self.patches.len() as u32;
@@ -415,8 +392,8 @@ impl Mesh {
             emission: s.emission,
             elements: first..self.elements.len() as u32,
             root,
-            region,
-            cuts,
+            region: s.region,
+            cuts: s.cuts.clone(),
         });
     }
 
@@ -548,6 +525,55 @@ pub(crate) fn sanitize(v: Vec3) -> Vec3 {
         if v.y.is_finite() { v.y.max(0.0) } else { 0.0 },
         if v.z.is_finite() { v.z.max(0.0) } else { 0.0 },
     )
+}
+
+/// The sources cut along their contact segments (`cuts`, per scene triangle): the pieces
+/// (consecutive per triangle, as the patch ranges need), the contact segments along their
+/// edges, and how many triangles could not be split (kept whole). Pieces thinner than
+/// 1e-7 of their triangle's area are dropped (rounding slivers along a cut).
+fn split_sources(
+    sources: &[Source],
+    cuts: &[Vec<[Vec3; 2]>],
+) -> (Vec<Source>, Vec<[Vec3; 2]>, usize) {
+    let mut out = Vec::with_capacity(sources.len());
+    let mut edges = Vec::new();
+    let mut unsplit = 0;
+    let mut next_region = 0u32;
+    for s in sources {
+        let c = &cuts[s.scene_triangle as usize];
+        let whole = |next_region: u32| Source {
+            region: next_region,
+            cuts: 0..0,
+            ..s.clone()
+        };
+        if c.is_empty() {
+            out.push(whole(next_region));
+            next_region += 1;
+            continue;
+        }
+        let Some(split) = contact::split(s.verts, c, next_region) else {
+            unsplit += 1;
+            out.push(whole(next_region));
+            next_region += 1;
+            continue;
+        };
+        let a = area(&s.verts);
+        for piece in split {
+            next_region = next_region.max(piece.region + 1);
+            if area(&piece.verts) <= a * 1e-7 {
+                continue;
+            }
+            let first = edges.len() as u32;
+            edges.extend_from_slice(&piece.cuts);
+            out.push(Source {
+                verts: piece.verts,
+                region: piece.region,
+                cuts: first..edges.len() as u32,
+                ..s.clone()
+            });
+        }
+    }
+    (out, edges, unsplit)
 }
 
 fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSettings) -> f64 {
