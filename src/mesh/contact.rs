@@ -246,9 +246,20 @@ fn quiet_spade_panics() {
     });
 }
 
-/// Splits triangle `verts` along `cuts` (segments in its plane, inside it). `None` when
-/// the triangulation fails (then the triangle stays whole).
-pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> Option<Vec<Piece>> {
+/// Splits triangle `verts` along `cuts` (segments in its plane, inside it) into pieces
+/// with edges no longer than about `max_len` (0: no limit). `None` when the
+/// triangulation fails (then the triangle stays whole).
+pub(super) fn split(
+    verts: [Vec3; 3],
+    cuts: &[[Vec3; 2]],
+    first_region: u32,
+    max_len: f64,
+) -> Option<Vec<Piece>> {
+    let max_len = if max_len > 0.0 {
+        max_len
+    } else {
+        f64::INFINITY
+    };
     let v = verts.map(|p| p.as_dvec3());
     // A 2D frame in the triangle's plane: origin v0, axes u (along v0→v1) and w.
     let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
@@ -300,25 +311,64 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], first_region: u32) -> 
         }
         segments.sort_unstable_by_key(|&(a, b)| if a < b { (a, b) } else { (b, a) });
         segments.dedup_by_key(|&mut (a, b)| if a < b { (a, b) } else { (b, a) });
+        // Constraints are put in in pieces no longer than `max_len` (the patch length),
+        // so the refinement below never needs to split them. The triangle's own edges are
+        // cut at the same dyadic points the longest-edge bisection of a neighbouring,
+        // unsplit triangle puts on the shared edge (halving until at most `max_len`), so
+        // the neighbours' vertices match (no T-junctions beyond the contact lines' own
+        // ends).
+        let chain = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>,
+                     a: Point2<f64>,
+                     b: Point2<f64>,
+                     parts: u32|
+         -> Option<()> {
+            let mut prev = cdt.insert(a).ok()?;
+            for i in 1..=parts {
+                let t = i as f64 / parts as f64;
+                let p = Point2::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
+                let next = if i == parts {
+                    cdt.insert(b).ok()?
+                } else {
+                    cdt.insert(p).ok()?
+                };
+                if next != prev {
+                    cdt.add_constraint_and_split(prev, next, |p| p);
+                }
+                prev = next;
+            }
+            Some(())
+        };
         for (ha, hb) in segments {
             if ha != hb {
-                cdt.add_constraint_and_split(ha, hb, |p| p);
+                let (a, b) = (cdt.vertex(ha).position(), cdt.vertex(hb).position());
+                let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
+                let parts = (len / max_len).ceil().clamp(1.0, 1024.0) as u32;
+                chain(&mut cdt, a, b, parts)?;
             }
         }
-        // The triangle's own edges are constraints too, kept whole by the refinement, so
-        // its neighbours see no new vertices on them (no T-junctions beyond the contact
-        // lines' own ends). The refinement then adds interior points until no angle is
-        // below 25° where the kept edges allow it: contact lines that end inside the
-        // triangle would otherwise leave long slivers fanning out to its corners, and
-        // slivers shade in streaks.
-        let corners: Vec<_> = corners.into_iter().collect::<Result<_, _>>().ok()?;
+        corners.into_iter().collect::<Result<Vec<_>, _>>().ok()?;
         for k in 0..3 {
-            cdt.add_constraint_and_split(corners[k], corners[(k + 1) % 3], |p| p);
+            let (a, b) = (c[k], c[(k + 1) % 3]);
+            let mut parts = 1u32;
+            while (b - a).length() / parts as f64 > max_len && parts < 1 << 12 {
+                parts *= 2;
+            }
+            chain(
+                &mut cdt,
+                Point2::new(a.x, a.y),
+                Point2::new(b.x, b.y),
+                parts,
+            )?;
         }
+        // Then interior points until no angle is below 25° and no piece is much larger
+        // than a patch (Ruppert's refinement, constraints kept whole): contact lines that
+        // end inside the triangle would otherwise leave long slivers fanning out to its
+        // corners, and slivers shade in streaks.
         if refine {
             cdt.refine(
                 RefinementParameters::<f64>::new()
                     .with_angle_limit(AngleLimit::from_deg(25.0))
+                    .with_max_allowed_area(0.5 * max_len * max_len)
                     .keep_constraint_edges()
                     .with_max_additional_vertices(4096),
             );
@@ -485,7 +535,7 @@ mod tests {
             Vec3::new(0.2, 0.0, -0.6),
         ];
         let cuts: Vec<[Vec3; 2]> = (0..4).map(|k| [q[k], q[(k + 1) % 4]]).collect();
-        let pieces = split(t, &cuts, 7).expect("split");
+        let pieces = split(t, &cuts, 7, 0.5).expect("split");
         let n = (t[1] - t[0]).cross(t[2] - t[0]);
         let area = |v: &[Vec3; 3]| 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length() as f64;
         let total: f64 = pieces.iter().map(|p| area(&p.verts)).sum();
@@ -548,7 +598,7 @@ mod tests {
                 || ((a.z.abs() - 0.2).abs() < 1e-5 && (a.z - b.z).abs() < 1e-5);
             assert!(on_outline, "{a} {b}");
         }
-        let pieces = split(ceiling, &cuts[0], 0).expect("split");
+        let pieces = split(ceiling, &cuts[0], 0, 0.5).expect("split");
         let regions: std::collections::HashSet<u32> = pieces.iter().map(|p| p.region).collect();
         assert_eq!(regions.len(), 2);
     }

@@ -322,7 +322,8 @@ impl Mesh {
                 scale * CONTACT_TOLERANCE,
                 (element_size * 0.5) as f32,
             );
-            let (pieces, edges, unsplit) = split_sources(&sources, &cuts);
+            let (pieces, edges, unsplit) =
+                split_sources(&sources, &cuts, element_size * PATCH_PER_ELEMENT);
             if unsplit > 0 {
                 warnings.push(format!(
                     "{}: {unsplit} triangle(s) could not be split along their contact lines",
@@ -527,13 +528,15 @@ pub(crate) fn sanitize(v: Vec3) -> Vec3 {
     )
 }
 
-/// The sources cut along their contact segments (`cuts`, per scene triangle): the pieces
+/// The sources cut along their contact segments (`cuts`, per scene triangle) into pieces
+/// with edges up to about `max_len` (the patch length): the pieces
 /// (consecutive per triangle, as the patch ranges need), the contact segments along their
 /// edges, and how many triangles could not be split (kept whole). Pieces thinner than
 /// 1e-7 of their triangle's area are dropped (rounding slivers along a cut).
 fn split_sources(
     sources: &[Source],
     cuts: &[Vec<[Vec3; 2]>],
+    max_len: f64,
 ) -> (Vec<Source>, Vec<[Vec3; 2]>, usize) {
     let mut out = Vec::with_capacity(sources.len());
     let mut edges = Vec::new();
@@ -551,7 +554,7 @@ fn split_sources(
             next_region += 1;
             continue;
         }
-        let Some(split) = contact::split(s.verts, c, next_region) else {
+        let Some(split) = contact::split(s.verts, c, next_region, max_len) else {
             unsplit += 1;
             out.push(whole(next_region));
             next_region += 1;
