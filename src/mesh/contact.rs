@@ -190,13 +190,19 @@ pub(super) fn find_cuts(
     min_len: f32,
 ) -> Vec<Vec<[Vec3; 2]>> {
     // Per receiver: segments, and whether each came from a face lying in its plane.
+    use rayon::prelude::*;
+    let pairs = overlapping_pairs(triangles, receivers, tol);
+    let hits: Vec<(u32, [DVec3; 2], bool)> = pairs
+        .par_iter()
+        .flat_map_iter(|&(i, j)| {
+            let (r, t) = (&triangles[i as usize], &triangles[j as usize]);
+            let (segments, coplanar) = contact_segments(r, t, tol as f64, min_len as f64);
+            segments.into_iter().map(move |s| (i, s, coplanar))
+        })
+        .collect();
     let mut found: Vec<Vec<([DVec3; 2], bool)>> = vec![Vec::new(); triangles.len()];
-    for (i, j) in overlapping_pairs(triangles, receivers, tol) {
-        let (r, t) = (&triangles[i as usize], &triangles[j as usize]);
-        let (segments, coplanar) = contact_segments(r, t, tol as f64, min_len as f64);
-        for s in segments {
-            found[i as usize].push((s, coplanar));
-        }
+    for (i, s, coplanar) in hits {
+        found[i as usize].push((s, coplanar));
     }
     let tol = tol as f64;
     let same = |a: &[DVec3; 2], b: &[DVec3; 2]| {

@@ -538,31 +538,41 @@ fn split_sources(
     cuts: &[Vec<[Vec3; 2]>],
     max_len: f64,
 ) -> (Vec<Source>, Vec<[Vec3; 2]>, usize) {
+    use rayon::prelude::*;
+    // Split in parallel (regions numbered from 0 per triangle), then number the regions.
+    let splits: Vec<Option<Vec<contact::Piece>>> = sources
+        .par_iter()
+        .map(|s| {
+            let c = &cuts[s.scene_triangle as usize];
+            if c.is_empty() {
+                None
+            } else {
+                Some(contact::split(s.verts, c, 0, max_len).unwrap_or_default())
+            }
+        })
+        .collect();
     let mut out = Vec::with_capacity(sources.len());
     let mut edges = Vec::new();
     let mut unsplit = 0;
     let mut next_region = 0u32;
-    for s in sources {
-        let c = &cuts[s.scene_triangle as usize];
-        let whole = |next_region: u32| Source {
-            region: next_region,
-            cuts: 0..0,
-            ..s.clone()
-        };
-        if c.is_empty() {
-            out.push(whole(next_region));
-            next_region += 1;
-            continue;
-        }
-        let Some(split) = contact::split(s.verts, c, next_region, max_len) else {
-            unsplit += 1;
-            out.push(whole(next_region));
-            next_region += 1;
-            continue;
+    for (s, split) in sources.iter().zip(splits) {
+        let split = match split {
+            Some(pieces) if !pieces.is_empty() => pieces,
+            failed => {
+                unsplit += failed.is_some() as usize;
+                out.push(Source {
+                    region: next_region,
+                    cuts: 0..0,
+                    ..s.clone()
+                });
+                next_region += 1;
+                continue;
+            }
         };
         let a = area(&s.verts);
+        let base = next_region;
         for piece in split {
-            next_region = next_region.max(piece.region + 1);
+            next_region = next_region.max(base + piece.region + 1);
             if area(&piece.verts) <= a * 1e-7 {
                 continue;
             }
@@ -570,7 +580,7 @@ fn split_sources(
             edges.extend_from_slice(&piece.cuts);
             out.push(Source {
                 verts: piece.verts,
-                region: piece.region,
+                region: base + piece.region,
                 cuts: first..edges.len() as u32,
                 ..s.clone()
             });
