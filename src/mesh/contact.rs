@@ -82,7 +82,7 @@ fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> V
 
 /// The segment where triangle `t` meets the plane of `r` (points within `tol` of the
 /// plane count as on it), clipped to `r`; `None` when they do not meet in a segment
-/// longer than `min_len` inside `r`, or when it runs along an edge of `r`. A face lying
+/// at least `min_len` long (before clipping), or when it runs along an edge of `r`. A face lying
 /// in the plane yields its edges (up to three segments).
 fn contact_segments(
     r: &[Vec3; 3],
@@ -137,6 +137,12 @@ fn contact_segments(
     // short or along one of r's edges.
     let mut out = Vec::new();
     for [a, b] in raw {
+        // Short contacts are dropped before clipping: a long contact line that only
+        // clips to a short piece of this triangle (near its corner) must stay, or the
+        // outline it belongs to would have a gap.
+        if (b - a).length() < min_len {
+            continue;
+        }
         let a = a - n * (a - r[0]).dot(n);
         let b = b - n * (b - r[0]).dot(n);
         let (mut t0, mut t1) = (0.0f64, 1.0f64);
@@ -161,7 +167,7 @@ fn contact_segments(
             continue;
         }
         let (ca, cb) = (a + (b - a) * t0, a + (b - a) * t1);
-        if (cb - ca).length() < min_len {
+        if (cb - ca).length() <= tol {
             continue;
         }
         let along_edge = (0..3).any(|k| {
@@ -180,6 +186,51 @@ fn contact_segments(
     (out, coplanar)
 }
 
+/// What touches each triangle: the contact segments to split it along, and the faces lying
+/// against its front (within the tolerance), which hide the part of it they overlap.
+pub(super) struct Contacts {
+    pub cuts: Vec<Vec<[Vec3; 2]>>,
+    pub covers: Vec<Vec<u32>>,
+}
+
+/// Whether `t` lies against the front of `r`: all its vertices within `tol` of r's plane,
+/// and either in front of it, or (when they are in the same plane to 1/1000 of `tol`)
+/// facing it (a box's bottom on a floor, a lamp flush under a ceiling).
+fn covers(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64) -> bool {
+    let r = r.map(|v| v.as_dvec3());
+    let t = t.map(|v| v.as_dvec3());
+    let n = (r[1] - r[0]).cross(r[2] - r[0]).normalize_or_zero();
+    let m = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+    if n == DVec3::ZERO || m == DVec3::ZERO {
+        return false;
+    }
+    let d = t.map(|v| (v - r[0]).dot(n));
+    if d.iter().any(|x| x.abs() > tol) {
+        return false;
+    }
+    let mean = (d[0] + d[1] + d[2]) / 3.0;
+    mean > tol * 1e-3 || (mean.abs() <= tol * 1e-3 && m.dot(n) < 0.0)
+}
+
+/// Whether point `p` (on a receiving triangle) lies under one of the faces `covers` (of
+/// `triangles`): inside it, seen along its normal.
+pub(super) fn is_covered(p: Vec3, covers: &[u32], triangles: &[[Vec3; 3]]) -> bool {
+    covers.iter().any(|&j| {
+        let t = triangles[j as usize].map(|v| v.as_dvec3());
+        let p = p.as_dvec3();
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let nn = n.length_squared();
+        if nn <= 0.0 {
+            return false;
+        }
+        // Barycentric coordinates of p projected onto t's plane.
+        let b0 = (t[2] - t[1]).cross(p - t[1]).dot(n) / nn;
+        let b1 = (t[0] - t[2]).cross(p - t[2]).dot(n) / nn;
+        let b2 = 1.0 - b0 - b1;
+        b0 >= -1e-9 && b1 >= -1e-9 && b2 >= -1e-9
+    })
+}
+
 /// Contact segments for every receiving triangle: `receivers[i]` says whether triangle
 /// `i` is meshed. `tol`: how close a surface must come to count as touching; `min_len`:
 /// shorter contacts are ignored (they are finer than the elements). Mesh frame, f32.
@@ -188,7 +239,7 @@ pub(super) fn find_cuts(
     receivers: &[bool],
     tol: f32,
     min_len: f32,
-) -> Vec<Vec<[Vec3; 2]>> {
+) -> Contacts {
     // Per receiver: segments, and whether each came from a face lying in its plane.
     use rayon::prelude::*;
     let pairs = overlapping_pairs(triangles, receivers, tol);
@@ -200,6 +251,15 @@ pub(super) fn find_cuts(
             segments.into_iter().map(move |s| (i, s, coplanar))
         })
         .collect();
+    let covering: Vec<(u32, u32)> = pairs
+        .par_iter()
+        .filter(|&&(i, j)| covers(&triangles[i as usize], &triangles[j as usize], tol as f64))
+        .copied()
+        .collect();
+    let mut covers_of: Vec<Vec<u32>> = vec![Vec::new(); triangles.len()];
+    for (i, j) in covering {
+        covers_of[i as usize].push(j);
+    }
     let mut found: Vec<Vec<([DVec3; 2], bool)>> = vec![Vec::new(); triangles.len()];
     for (i, s, coplanar) in hits {
         found[i as usize].push((s, coplanar));
@@ -209,7 +269,7 @@ pub(super) fn find_cuts(
         ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
             || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
     };
-    found
+    let cuts = found
         .into_iter()
         .map(|segments| {
             // An edge shared by two faces lying in the plane (the diagonal of a quad lamp
@@ -231,7 +291,11 @@ pub(super) fn find_cuts(
                 .map(|[a, b]| [a.as_vec3(), b.as_vec3()])
                 .collect()
         })
-        .collect()
+        .collect();
+    Contacts {
+        cuts,
+        covers: covers_of,
+    }
 }
 
 /// Panics raised inside `spade` (caught in [`split`]) are not reported on stderr: they
@@ -595,8 +659,8 @@ mod tests {
             Vec3::new(0.2, y, 0.2),
             Vec3::new(-0.2, y, 0.2),
         ];
-        let triangles = vec![ceiling, [q[0], q[2], q[1]], [q[0], q[3], q[2]]];
-        let cuts = find_cuts(&triangles, &[true, false, false], 2e-4, 1e-3);
+        let triangles = vec![ceiling, [q[0], q[1], q[2]], [q[0], q[2], q[3]]];
+        let cuts = find_cuts(&triangles, &[true, false, false], 2e-4, 1e-3).cuts;
         assert_eq!(cuts[0].len(), 4, "{:?}", cuts[0]);
         for [a, b] in &cuts[0] {
             // Each runs along the outline: one coordinate stays at ±0.2.
@@ -607,6 +671,16 @@ mod tests {
         let pieces = split(ceiling, &cuts[0], 0, 0.5).expect("split");
         let regions: std::collections::HashSet<u32> = pieces.iter().map(|p| p.region).collect();
         assert_eq!(regions.len(), 2);
+        // The lamp covers the ceiling's pieces inside the outline (they are hidden and not
+        // drawn), not those outside; the ceiling does not cover the lamp (it is behind it).
+        let covers = find_cuts(&triangles, &[true, true, true], 2e-4, 1e-3).covers;
+        assert_eq!(covers[0].len(), 2);
+        assert!(covers[1].is_empty() && covers[2].is_empty());
+        for p in &pieces {
+            let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+            let inside = c.x.abs() < 0.2 && c.z.abs() < 0.2;
+            assert_eq!(is_covered(c, &covers[0], &triangles), inside, "{c}");
+        }
     }
 
     #[test]
@@ -641,5 +715,40 @@ mod tests {
         assert!(mesh.warnings.is_empty(), "{:?}", mesh.warnings);
         // The two blocks' footprints on the floor and the lamp's outline on the ceiling.
         assert!(mesh.cut_edges.len() >= 12, "{}", mesh.cut_edges.len());
+        // No ceiling patch straddles the lamp's outline (the lamp's short edges clip to
+        // short pieces near the ceiling's diagonal: they must be cut all the same), and
+        // exactly those inside it are covered.
+        let lamp: Vec<&Vec3> = mesh
+            .patches
+            .iter()
+            .filter(|p| p.emission.max_element() > 0.0)
+            .flat_map(|p| p.verts.iter())
+            .collect();
+        let lo = lamp.iter().fold(Vec3::INFINITY, |a, v| a.min(**v));
+        let hi = lamp.iter().fold(Vec3::NEG_INFINITY, |a, v| a.max(**v));
+        let eps = 1e-5;
+        let mut inside_patches = 0;
+        for p in mesh
+            .patches
+            .iter()
+            .filter(|p| p.emission.max_element() <= 0.0 && p.normal.y < -0.9 && p.verts[0].y > hi.y)
+        {
+            let strictly_in = |v: &Vec3| {
+                v.x > lo.x + eps && v.x < hi.x - eps && v.z > lo.z + eps && v.z < hi.z - eps
+            };
+            let strictly_out = |v: &Vec3| {
+                v.x < lo.x - eps || v.x > hi.x + eps || v.z < lo.z - eps || v.z > hi.z + eps
+            };
+            assert!(
+                !(p.verts.iter().any(strictly_in) && p.verts.iter().any(strictly_out)),
+                "ceiling patch {:?} straddles the lamp's outline",
+                p.verts
+            );
+            let c = p.centroid();
+            let inside = c.x > lo.x && c.x < hi.x && c.z > lo.z && c.z < hi.z;
+            assert_eq!(p.covered, inside, "{:?}", p.verts);
+            inside_patches += inside as usize;
+        }
+        assert!(inside_patches > 0);
     }
 }

@@ -85,6 +85,9 @@ pub struct Patch {
     /// Contact segments along the edges of the piece it was cut from, in
     /// `Mesh::cut_edges`.
     pub cuts: Range<u32>,
+    /// Hidden under a face pressed against its front (a box's bottom on a floor, a lamp
+    /// flush under a ceiling): it receives no light and is not drawn.
+    pub covered: bool,
 }
 
 impl Patch {
@@ -159,6 +162,7 @@ struct Source {
     /// this is, after splitting along contact lines (see `Patch::region`).
     region: u32,
     cuts: Range<u32>,
+    covered: bool,
     scene_triangle: u32,
     triangle: u32,
     object: u32,
@@ -281,6 +285,7 @@ impl Mesh {
                     verts,
                     region: 0,
                     cuts: 0..0,
+                    covered: false,
                     scene_triangle,
                     triangle: ti as u32,
                     object: oi as u32,
@@ -316,21 +321,34 @@ impl Mesh {
             for s in &sources {
                 receivers[s.scene_triangle as usize] = true;
             }
-            let cuts = contact::find_cuts(
+            let contacts = contact::find_cuts(
                 &triangles,
                 &receivers,
                 scale * CONTACT_TOLERANCE,
                 (element_size * 0.5) as f32,
             );
-            let (pieces, edges, unsplit) =
-                split_sources(&sources, &cuts, element_size * PATCH_PER_ELEMENT);
+            let (mut pieces, edges, unsplit) =
+                split_sources(&sources, &contacts.cuts, element_size * PATCH_PER_ELEMENT);
+            // Pieces lying under a face pressed against them (a box's bottom, a flush
+            // lamp) are hidden: not drawn (they would z-fight with that face).
+            let mut any_covered = false;
+            for p in pieces.iter_mut() {
+                let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+                p.covered = p.emission.max_element() <= 0.0
+                    && contact::is_covered(
+                        c,
+                        &contacts.covers[p.scene_triangle as usize],
+                        &triangles,
+                    );
+                any_covered |= p.covered;
+            }
             if unsplit > 0 {
                 warnings.push(format!(
                     "{}: {unsplit} triangle(s) could not be split along their contact lines",
                     scene.name
                 ));
             }
-            if pieces.len() > sources.len() {
+            if pieces.len() > sources.len() || any_covered {
                 let coarsest: usize = pieces
                     .iter()
                     .map(|s| if s.double_sided { 2 } else { 1 })
@@ -395,6 +413,7 @@ impl Mesh {
             root,
             region: s.region,
             cuts: s.cuts.clone(),
+            covered: s.covered,
         });
     }
 

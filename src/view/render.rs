@@ -634,7 +634,12 @@ fn triangles(mesh: &Mesh) -> Vec<Vertex> {
         .collect();
     let mut out = Vec::with_capacity(mesh.elements.len() * 3);
     for (i, e) in mesh.elements.iter().enumerate() {
-        let object = mesh.patches[e.patch as usize].object;
+        let patch = &mesh.patches[e.patch as usize];
+        // Hidden under a face pressed against it: drawing it would only z-fight.
+        if patch.covered {
+            continue;
+        }
+        let object = patch.object;
         let c = e.corners;
         let corner = |k: usize| {
             let mut b = [0.0f32; 3];
