@@ -45,35 +45,78 @@ fn exact(px: f64, pz: f64) -> f64 {
     RHO * PI * f
 }
 
+/// A one-material square (two triangles) with these corners, counter-clockwise seen from
+/// the side it faces.
+fn quad(name: &str, corners: [Vec3; 4], material: u32) -> Object {
+    let mut o = Object {
+        name: name.into(),
+        world_from_local: DMat4::IDENTITY,
+        ..Default::default()
+    };
+    o.positions = corners.to_vec();
+    o.triangles = vec![[0, 1, 2], [0, 2, 3]];
+    o.triangle_material = vec![material, material];
+    o
+}
+
+/// Solves `scene` with 0.05 m elements and returns the worst relative error against
+/// `exact` over `pts` (receiver points, normal +y) for flat, Gouraud and Hermite.
+fn worst_errors(
+    scene: &Scene,
+    pts: &[(DVec3, DVec3)],
+    exact: impl Fn(f64, f64) -> f64,
+) -> Vec<(Reconstruction, f64)> {
+    let p = Prepared::new(
+        scene,
+        &MeshSettings {
+            element_size: Some(0.05),
+            ..Default::default()
+        },
+    );
+    let mut s = p
+        .solver(SolverSettings {
+            method: Method::GaussSeidel,
+            tolerance: 1e-6,
+            ..Default::default()
+        })
+        .unwrap();
+    s.run(None, &AtomicBool::new(false)).unwrap();
+    [
+        Reconstruction::Flat,
+        Reconstruction::Gouraud,
+        Reconstruction::Hermite,
+    ]
+    .into_iter()
+    .map(|mode| {
+        let got = probe_values(s.mesh(), &s.radiosity(), pts, mode);
+        let worst = pts
+            .iter()
+            .zip(&got)
+            .map(|((p, _), g)| {
+                let e = exact(p.x, p.z);
+                ((g.x as f64 - e) / e).abs()
+            })
+            .fold(0.0, f64::max);
+        (mode, worst)
+    })
+    .collect()
+}
+
 fn scene() -> Scene {
     let h = HALF as f32;
     let y = GAP as f32;
-    let mut receiver = Object {
-        name: "receiver".into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    receiver.positions = vec![
-        Vec3::new(-h, 0.0, -h),
-        Vec3::new(-h, 0.0, h),
-        Vec3::new(h, 0.0, h),
-        Vec3::new(h, 0.0, -h),
-    ];
-    receiver.triangles = vec![[0, 1, 2], [0, 2, 3]]; // facing +y
-    receiver.triangle_material = vec![0, 0];
-    let mut emitter = Object {
-        name: "emitter".into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    emitter.positions = vec![
-        Vec3::new(-h, y, -h),
-        Vec3::new(-h, y, h),
-        Vec3::new(h, y, h),
-        Vec3::new(h, y, -h),
-    ];
-    emitter.triangles = vec![[0, 2, 1], [0, 3, 2]]; // facing −y
-    emitter.triangle_material = vec![1, 1];
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    // The receiver faces +y, the emitter −y.
+    let receiver = quad(
+        "receiver",
+        [c(-h, 0.0, -h), c(-h, 0.0, h), c(h, 0.0, h), c(h, 0.0, -h)],
+        0,
+    );
+    let emitter = quad(
+        "emitter",
+        [c(-h, y, -h), c(h, y, -h), c(h, y, h), c(-h, y, h)],
+        1,
+    );
     Scene {
         name: "parallel plates".into(),
         objects: vec![receiver, emitter],
@@ -121,21 +164,6 @@ fn catalogue_and_contour_integral_agree() {
 
 #[test]
 fn receiver_radiosity_matches_the_closed_form() {
-    let p = Prepared::new(
-        &scene(),
-        &MeshSettings {
-            element_size: Some(0.05),
-            ..Default::default()
-        },
-    );
-    let mut s = p
-        .solver(SolverSettings {
-            method: Method::GaussSeidel,
-            tolerance: 1e-6,
-            ..Default::default()
-        })
-        .unwrap();
-    s.run(None, &AtomicBool::new(false)).unwrap();
     let mut pts = Vec::new();
     for i in 0..11 {
         for k in 0..11 {
@@ -144,17 +172,7 @@ fn receiver_radiosity_matches_the_closed_form() {
             pts.push((DVec3::new(x, 0.0, z), DVec3::Y));
         }
     }
-    for mode in [
-        Reconstruction::Flat,
-        Reconstruction::Gouraud,
-        Reconstruction::Hermite,
-    ] {
-        let got = probe_values(s.mesh(), &s.radiosity(), &pts, mode);
-        let worst = pts
-            .iter()
-            .zip(&got)
-            .map(|((p, _), g)| ((g.x as f64 - exact(p.x, p.z)) / exact(p.x, p.z)).abs())
-            .fold(0.0, f64::max);
+    for (mode, worst) in worst_errors(&scene(), &pts, exact) {
         println!("{mode:?}: worst relative error {worst:.4}");
         // 0.05 m elements on a field whose relative slope is at most ~1.5 /m: a flat
         // element is off by up to ~half its width × slope ≈ 4 %; the interpolating
@@ -191,32 +209,18 @@ fn exact_perpendicular(px: f64, pz: f64) -> f64 {
 fn perpendicular_scene() -> Scene {
     let h = HALF as f32;
     let w = WALL as f32;
-    let mut floor = Object {
-        name: "floor".into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    floor.positions = vec![
-        Vec3::new(-h, 0.0, 0.0),
-        Vec3::new(-h, 0.0, w),
-        Vec3::new(h, 0.0, w),
-        Vec3::new(h, 0.0, 0.0),
-    ];
-    floor.triangles = vec![[0, 1, 2], [0, 2, 3]]; // facing +y
-    floor.triangle_material = vec![0, 0];
-    let mut wall = Object {
-        name: "wall".into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    wall.positions = vec![
-        Vec3::new(-h, 0.0, 0.0),
-        Vec3::new(h, 0.0, 0.0),
-        Vec3::new(h, w, 0.0),
-        Vec3::new(-h, w, 0.0),
-    ];
-    wall.triangles = vec![[0, 1, 2], [0, 2, 3]]; // facing +z
-    wall.triangle_material = vec![1, 1];
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    // The floor faces +y, the wall +z.
+    let floor = quad(
+        "floor",
+        [c(-h, 0.0, 0.0), c(-h, 0.0, w), c(h, 0.0, w), c(h, 0.0, 0.0)],
+        0,
+    );
+    let wall = quad(
+        "wall",
+        [c(-h, 0.0, 0.0), c(h, 0.0, 0.0), c(h, w, 0.0), c(-h, w, 0.0)],
+        1,
+    );
     Scene {
         name: "perpendicular plates".into(),
         objects: vec![floor, wall],
@@ -259,21 +263,6 @@ fn perpendicular_catalogue_agrees_with_quadrature() {
 
 #[test]
 fn perpendicular_receiver_matches_the_closed_form() {
-    let p = Prepared::new(
-        &perpendicular_scene(),
-        &MeshSettings {
-            element_size: Some(0.05),
-            ..Default::default()
-        },
-    );
-    let mut s = p
-        .solver(SolverSettings {
-            method: Method::GaussSeidel,
-            tolerance: 1e-6,
-            ..Default::default()
-        })
-        .unwrap();
-    s.run(None, &AtomicBool::new(false)).unwrap();
     let mut pts = Vec::new();
     for i in 0..11 {
         for k in 0..10 {
@@ -282,20 +271,7 @@ fn perpendicular_receiver_matches_the_closed_form() {
             pts.push((DVec3::new(x, 0.0, z), DVec3::Y));
         }
     }
-    for mode in [
-        Reconstruction::Flat,
-        Reconstruction::Gouraud,
-        Reconstruction::Hermite,
-    ] {
-        let got = probe_values(s.mesh(), &s.radiosity(), &pts, mode);
-        let worst = pts
-            .iter()
-            .zip(&got)
-            .map(|((p, _), g)| {
-                let e = exact_perpendicular(p.x, p.z);
-                ((g.x as f64 - e) / e).abs()
-            })
-            .fold(0.0, f64::max);
+    for (mode, worst) in worst_errors(&perpendicular_scene(), &pts, exact_perpendicular) {
         println!("perpendicular, {mode:?}: worst relative error {worst:.4}");
         // Worst at (0.45, 0.1), beside the wall's end: relative slope 3.2 /m, relative
         // curvature 35 /m² (finite differences of the closed form). A flat 0.05 m element
