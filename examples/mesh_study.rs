@@ -6,80 +6,19 @@
 //! (mesh, setting, elements, RMS and max relative error of the floor's radiosity at a 41×41
 //! grid of points, Gouraud reconstruction as the viewer shows it) and `mesh_study.png`.
 
-use glam::DVec3;
 use plotters::prelude::*;
-use radiosity::analytic::penumbra_floor;
-use radiosity::cli::probe_values;
-use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
-use radiosity::pipeline::Prepared;
-use radiosity::scene::builtin;
-use radiosity::solver::{Method, SolverSettings};
-use std::sync::atomic::AtomicBool;
-
-fn grid() -> Vec<(DVec3, DVec3)> {
-    let n = 41;
-    let mut pts = Vec::new();
-    for i in 0..n {
-        for k in 0..n {
-            let x = -0.95 + 1.9 * i as f64 / (n - 1) as f64;
-            let z = -0.95 + 1.9 * k as f64 / (n - 1) as f64;
-            pts.push((DVec3::new(x, 0.0, z), DVec3::Y));
-        }
-    }
-    pts
-}
+use radiosity::analytic::{penumbra_errors, solve_penumbra};
+use radiosity::mesh::{AdaptiveSettings, Reconstruction};
 
 /// (elements, RMS relative error, max relative error) for Gouraud and for Hermite.
 fn run(element_size: f64, adaptive: Option<AdaptiveSettings>) -> (usize, [(f64, f64); 2]) {
-    let scene = builtin::penumbra();
-    let p = Prepared::new(
-        &scene,
-        &MeshSettings {
-            element_size: Some(element_size),
-            ..Default::default()
-        },
-    );
-    // Gauss–Seidel: the floor's light goes only to black surfaces, so two sweeps finish.
-    // Progressive for the largest uniform mesh (beyond Gauss–Seidel's matrix limit): the
-    // emitter shoots once, the floor's light then goes to black surfaces.
-    let method = if p.mesh.elements.len() > 50_000 {
-        Method::Progressive
-    } else {
-        Method::GaussSeidel
-    };
-    let mut s = p
-        .solver(SolverSettings {
-            method,
-            tolerance: 1e-6,
-            adaptive,
-            ..Default::default()
-        })
-        .expect("solver");
-    s.run(None, &AtomicBool::new(false)).expect("solve");
-    let pts = grid();
-    let peak = pts
-        .iter()
-        .map(|(p, _)| penumbra_floor(p.x, p.z))
-        .fold(0.0, f64::max);
+    let s = solve_penumbra(element_size, adaptive);
+    let mut floor = 0;
     let errors = [Reconstruction::Gouraud, Reconstruction::Hermite].map(|mode| {
-        let got = probe_values(s.mesh(), &s.radiosity(), &pts, mode);
-        let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
-        for ((p, _), g) in pts.iter().zip(&got) {
-            let exact = penumbra_floor(p.x, p.z);
-            let e = g.x as f64 - exact;
-            num += e * e;
-            den += exact * exact;
-            max = max.max(e.abs() / peak);
-        }
-        ((num / den).sqrt(), max)
+        let (rms, max, n) = penumbra_errors(&s, mode);
+        floor = n;
+        (rms, max)
     });
-    // Count only the floor's elements: the emitter and occluder are the same in both.
-    let floor = s
-        .mesh()
-        .elements
-        .iter()
-        .filter(|e| s.mesh().patches[e.patch as usize].object == 0)
-        .count();
     (floor, errors)
 }
 

@@ -53,3 +53,80 @@ pub fn penumbra_floor(x: f64, z: f64) -> f64 {
         .sum();
     PENUMBRA_RHO as f64 * std::f64::consts::PI * f
 }
+
+/// The penumbra study's receiver points: a 41 × 41 grid over the floor of
+/// `builtin:penumbra` (x and z in ±0.95 m), normal +y.
+pub fn penumbra_grid() -> Vec<(DVec3, DVec3)> {
+    (0..41 * 41)
+        .map(|i| {
+            let (a, b) = ((i / 41) as f64, (i % 41) as f64);
+            (
+                DVec3::new(-0.95 + 1.9 * a / 40.0, 0.0, -0.95 + 1.9 * b / 40.0),
+                DVec3::Y,
+            )
+        })
+        .collect()
+}
+
+/// `builtin:penumbra` meshed with `element_size` and solved to 1e-6 (Gauss–Seidel: the
+/// floor's light only reaches black surfaces, so two sweeps finish; progressive above
+/// 50,000 elements, beyond the matrix limit), with `adaptive` refinement if given.
+pub fn solve_penumbra(
+    element_size: f64,
+    adaptive: Option<crate::mesh::AdaptiveSettings>,
+) -> crate::solver::Solver {
+    use crate::solver::{Method, SolverSettings};
+    let p = crate::pipeline::Prepared::new(
+        &crate::scene::builtin::penumbra(),
+        &crate::mesh::MeshSettings {
+            element_size: Some(element_size),
+            ..Default::default()
+        },
+    );
+    let method = if p.mesh.elements.len() > 50_000 {
+        Method::Progressive
+    } else {
+        Method::GaussSeidel
+    };
+    let mut s = p
+        .solver(SolverSettings {
+            method,
+            tolerance: 1e-6,
+            adaptive,
+            ..Default::default()
+        })
+        .expect("the penumbra scene fits the solver");
+    s.run(None, &std::sync::atomic::AtomicBool::new(false))
+        .expect("the penumbra scene solves");
+    s
+}
+
+/// Error of a solved `builtin:penumbra` against [`penumbra_floor`] over [`penumbra_grid`]
+/// in reconstruction `mode`: (RMS error relative to the RMS of the exact values, worst
+/// error relative to the peak), and the number of floor elements.
+pub fn penumbra_errors(
+    solver: &crate::solver::Solver,
+    mode: crate::mesh::Reconstruction,
+) -> (f64, f64, usize) {
+    let pts = penumbra_grid();
+    let got = crate::cli::probe_values(solver.mesh(), &solver.radiosity(), &pts, mode);
+    let peak = pts
+        .iter()
+        .map(|(p, _)| penumbra_floor(p.x, p.z))
+        .fold(0.0, f64::max);
+    let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+    for ((p, _), g) in pts.iter().zip(&got) {
+        let exact = penumbra_floor(p.x, p.z);
+        let e = g.x as f64 - exact;
+        num += e * e;
+        den += exact * exact;
+        max = max.max(e.abs() / peak);
+    }
+    let mesh = solver.mesh();
+    let floor = mesh
+        .elements
+        .iter()
+        .filter(|e| mesh.patches[e.patch as usize].object == 0)
+        .count();
+    ((num / den).sqrt(), max, floor)
+}

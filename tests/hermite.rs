@@ -5,7 +5,7 @@
 //! `builtin:penumbra`.
 
 use glam::{DVec3, Vec3};
-use radiosity::analytic::penumbra_floor;
+use radiosity::analytic::penumbra_errors;
 use radiosity::cli::probe_values;
 use radiosity::mesh::{
     AdaptiveSettings, DisplayMesh, Mesh, MeshSettings, Reconstruction, Reconstructor, eval_bezier,
@@ -152,26 +152,7 @@ fn hermite_removes_mach_bands_on_smooth_light() {
 fn hermite_is_closer_to_the_closed_form_than_gouraud() {
     for adaptive in [false, true] {
         let (_, s) = penumbra(0.1, adaptive);
-        let b = s.radiosity();
-        let pts: Vec<(DVec3, DVec3)> = (0..41 * 41)
-            .map(|i| {
-                let (a, c) = ((i / 41) as f64, (i % 41) as f64);
-                (
-                    DVec3::new(-0.95 + 1.9 * a / 40.0, 0.0, -0.95 + 1.9 * c / 40.0),
-                    DVec3::Y,
-                )
-            })
-            .collect();
-        let rms = |mode| {
-            let got = probe_values(s.mesh(), &b, &pts, mode);
-            let (mut num, mut den) = (0.0, 0.0);
-            for ((p, _), g) in pts.iter().zip(&got) {
-                let e = penumbra_floor(p.x, p.z);
-                num += (g.x as f64 - e).powi(2);
-                den += e * e;
-            }
-            (num / den).sqrt()
-        };
+        let rms = |mode| penumbra_errors(&s, mode).0;
         let (g, h) = (rms(Reconstruction::Gouraud), rms(Reconstruction::Hermite));
         println!("adaptive {adaptive}: RMS error Gouraud {g:.4}, Hermite {h:.4}");
         assert!(
