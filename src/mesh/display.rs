@@ -187,16 +187,21 @@ impl DisplayMesh {
 /// Data for [`Reconstruction::Hermite`]: per display vertex a value and the gradient of
 /// each RGB channel in the surface's tangent plane.
 ///
-/// Each element is a cubic Bézier triangle (Farin, "Curves and Surfaces for CAGD", §17):
-/// corner control points are the vertex values, the two edge points next to a corner are
-/// the value plus a third of the gradient along the edge (so along each edge the surface
-/// is the cubic Hermite curve of the two end values and end slopes, the same from both
-/// sides: C⁰ across edges, and C¹ at vertices where the gradient is shared), and the
-/// centre point is the usual quadratic-precision choice b111 = E + (E − V)/2. Linear light
-/// is reproduced exactly. The vertex gradient is the least-squares plane through the
-/// vertex value and the centroids' values of the elements around it, weighted by area.
-/// T-vertices take the coarse edge's cubic (value and slope along the edge at its
-/// midpoint), so refinement leaves no crack.
+/// Each element is a Clough–Tocher macro-element (Farin, "Triangular Bernstein–Bézier
+/// patches", CAGD 3, 1986, §4): split at its centroid into three cubic Bézier triangles,
+/// 19 control points in all. Corner points are the vertex values; the two edge points
+/// next to a corner are the value plus a third of the gradient along the edge, so along
+/// each edge the surface is the cubic Hermite curve of the end values and end slopes, the
+/// same from both sides (C⁰). The derivative across each edge (along its normal in the
+/// element's plane) is made linear along the edge, between the end gradients' values, so
+/// both elements sharing an edge have the same cross-edge slope: C¹ across edges where
+/// they share their vertices (a smooth surface), not only at vertices. The inner points
+/// follow from C¹ between the three sub-triangles. Linear light is reproduced exactly.
+/// The vertex gradient is the least-squares plane through the vertex value and the
+/// centroids' values of the elements around it, weighted by area. T-vertices take the
+/// coarse edge's cubic (value and slope along the edge at its midpoint) and the mean of
+/// its ends' cross-edge slopes, so refinement leaves neither a crack nor a crease. Across a
+/// contact line vertices are not shared, and the surface jumps.
 #[derive(Clone, Debug, Default)]
 pub struct Hermite {
     pub values: Vec<Vec3>,
@@ -244,24 +249,38 @@ impl Reconstructor {
     }
 }
 
-/// The 10 control points of a cubic Bézier triangle, in the order b300, b030, b003, b210,
-/// b201, b120, b021, b102, b012, b111 (indices: powers of the barycentrics of corners 0, 1,
-/// 2).
-pub type Bezier = [Vec3; 10];
+/// The 19 control points of a Clough–Tocher macro-element over corners 1, 2, 3 (our 0,
+/// 1, 2) and the centroid 4, named by their powers of the four (extended) barycentrics:
+/// c3000, c0300, c0030, c2100, c2010, c1200, c0210, c1020, c0120, c2001, c0201, c0021,
+/// c1101, c1011, c0111, c1002, c0102, c0012, c0003.
+pub type Bezier = [Vec3; 19];
 
-/// Evaluates a cubic Bézier triangle at barycentric `bary`.
-pub fn eval_bezier(b: &Bezier, bary: [f32; 3]) -> Vec3 {
-    let [u, v, w] = bary;
-    b[0] * (u * u * u)
-        + b[1] * (v * v * v)
-        + b[2] * (w * w * w)
-        + b[3] * (3.0 * u * u * v)
-        + b[4] * (3.0 * u * u * w)
-        + b[5] * (3.0 * u * v * v)
-        + b[6] * (3.0 * v * v * w)
-        + b[7] * (3.0 * u * w * w)
-        + b[8] * (3.0 * v * w * w)
-        + b[9] * (6.0 * u * v * w)
+/// Evaluates a Clough–Tocher element at barycentric `bary` (of its corners): with
+/// m = min(bary), the point has extended barycentrics (b − m, 3m) in the sub-triangle
+/// opposite the corner with the smallest coordinate, where the cubic is a sum over the
+/// control points of that sub-triangle (the terms of the other two vanish).
+pub fn eval_bezier(c: &Bezier, bary: [f32; 3]) -> Vec3 {
+    let m = bary[0].min(bary[1]).min(bary[2]);
+    let (b1, b2, b3, b4) = (bary[0] - m, bary[1] - m, bary[2] - m, 3.0 * m);
+    c[0] * (b1 * b1 * b1)
+        + c[1] * (b2 * b2 * b2)
+        + c[2] * (b3 * b3 * b3)
+        + c[3] * (3.0 * b1 * b1 * b2)
+        + c[4] * (3.0 * b1 * b1 * b3)
+        + c[5] * (3.0 * b1 * b2 * b2)
+        + c[6] * (3.0 * b2 * b2 * b3)
+        + c[7] * (3.0 * b1 * b3 * b3)
+        + c[8] * (3.0 * b2 * b3 * b3)
+        + c[9] * (3.0 * b1 * b1 * b4)
+        + c[10] * (3.0 * b2 * b2 * b4)
+        + c[11] * (3.0 * b3 * b3 * b4)
+        + c[12] * (6.0 * b1 * b2 * b4)
+        + c[13] * (6.0 * b1 * b3 * b4)
+        + c[14] * (6.0 * b2 * b3 * b4)
+        + c[15] * (3.0 * b1 * b4 * b4)
+        + c[16] * (3.0 * b2 * b4 * b4)
+        + c[17] * (3.0 * b3 * b4 * b4)
+        + c[18] * (b4 * b4 * b4)
 }
 
 fn along(g: &[Vec3; 3], d: Vec3) -> Vec3 {
@@ -367,9 +386,12 @@ impl DisplayMesh {
             let m1 = along(&grads[b], d);
             vals[v] = (vals[a] + vals[b]) * 0.5 + (m0 - m1) / 8.0;
             let slope = (vals[b] - vals[a]) * 1.5 - (m0 + m1) / 4.0; // d/dt over the edge
+            // Across the edge (in the surface, normal to it): the mean of the ends' slopes,
+            // since the coarse element's cross-edge slope is linear along the edge.
+            let across = self.normals[v].cross(d).normalize_or_zero();
             for ch in 0..3 {
-                let g = grads[v][ch];
-                grads[v][ch] = g - d * (g.dot(d) / len2) + d * (slope[ch] / len2);
+                let n = (grads[a][ch].dot(across) + grads[b][ch].dot(across)) * 0.5;
+                grads[v][ch] = d * (slope[ch] / len2) + across * n;
             }
         }
         Hermite {
@@ -378,22 +400,51 @@ impl DisplayMesh {
         }
     }
 
-    /// The control points of element `e`'s cubic Bézier triangle.
+    /// The control points of element `e`'s Clough–Tocher element (see [`Bezier`]).
     pub fn bezier(elements: &[Element], h: &Hermite, e: u32) -> Bezier {
         let el = &elements[e as usize];
-        let [c0, c1, c2] = el.corners.map(|c| c as usize);
-        let [p0, p1, p2] = el.verts;
-        let (f0, f1, f2) = (h.values[c0], h.values[c1], h.values[c2]);
-        let (g0, g1, g2) = (&h.gradients[c0], &h.gradients[c1], &h.gradients[c2]);
-        let b210 = f0 + along(g0, p1 - p0) / 3.0;
-        let b201 = f0 + along(g0, p2 - p0) / 3.0;
-        let b120 = f1 + along(g1, p0 - p1) / 3.0;
-        let b021 = f1 + along(g1, p2 - p1) / 3.0;
-        let b102 = f2 + along(g2, p0 - p2) / 3.0;
-        let b012 = f2 + along(g2, p1 - p2) / 3.0;
-        let edge = (b210 + b201 + b120 + b021 + b102 + b012) / 6.0;
-        let corner = (f0 + f1 + f2) / 3.0;
-        let b111 = edge + (edge - corner) * 0.5;
-        [f0, f1, f2, b210, b201, b120, b021, b102, b012, b111]
+        let [i1, i2, i3] = el.corners.map(|c| c as usize);
+        let [p1, p2, p3] = el.verts;
+        let (f1, f2, f3) = (h.values[i1], h.values[i2], h.values[i3]);
+        let (g1, g2, g3) = (&h.gradients[i1], &h.gradients[i2], &h.gradients[i3]);
+        let (e12, e23, e31) = (p2 - p1, p3 - p2, p1 - p3);
+        // Edges: the Hermite cubic of the end values and slopes.
+        let c3000 = f1;
+        let c0300 = f2;
+        let c0030 = f3;
+        let c2100 = f1 + along(g1, e12) / 3.0;
+        let c2010 = f1 - along(g1, e31) / 3.0;
+        let c1200 = f2 - along(g2, e12) / 3.0;
+        let c0210 = f2 + along(g2, e23) / 3.0;
+        let c1020 = f3 + along(g3, e31) / 3.0;
+        let c0120 = f3 - along(g3, e23) / 3.0;
+        // Next to each corner towards the centroid: the corner's tangent plane.
+        let c2001 = (c2100 + c2010 + c3000) / 3.0;
+        let c0201 = (c1200 + c0300 + c0210) / 3.0;
+        let c0021 = (c1020 + c0120 + c0030) / 3.0;
+        // Cross-edge slopes linear along each edge, along the edge's normal in the plane:
+        // the centroid direction E_k4 = w + γ·(edge) with w normal to the edge, γ below.
+        let (e14, e24, e34) = ((e12 - e31) / 3.0, (e23 - e12) / 3.0, (e31 - e23) / 3.0);
+        let gamma =
+            |e: Vec3, edge: Vec3| -e.dot(edge) / edge.length_squared().max(f32::MIN_POSITIVE);
+        let (q1, q2, q3) = (gamma(e24, e23), gamma(e34, e31), gamma(e14, e12));
+        let c0111 = (((c0210 - c0120) * 3.0 - c0300 + c0030) * q1
+            + (c0210 * 2.0 - c0300 - c0120 + c0021 + c0201))
+            * 0.5;
+        let c1011 = (((c1020 - c2010) * 3.0 - c0030 + c3000) * q2
+            + (c1020 * 2.0 - c0030 - c2010 + c2001 + c0021))
+            * 0.5;
+        let c1101 = (((c2100 - c1200) * 3.0 - c3000 + c0300) * q3
+            + (c2100 * 2.0 - c3000 - c1200 + c2001 + c0201))
+            * 0.5;
+        // Inner points: C¹ between the three sub-triangles.
+        let c1002 = (c1101 + c1011 + c2001) / 3.0;
+        let c0102 = (c1101 + c0111 + c0201) / 3.0;
+        let c0012 = (c1011 + c0111 + c0021) / 3.0;
+        let c0003 = (c1002 + c0102 + c0012) / 3.0;
+        [
+            c3000, c0300, c0030, c2100, c2010, c1200, c0210, c1020, c0120, c2001, c0201, c0021,
+            c1101, c1011, c0111, c1002, c0102, c0012, c0003,
+        ]
     }
 }

@@ -203,6 +203,9 @@ fn write_values(queue: &wgpu::Queue, texture: &wgpu::Texture, values: &[Vec3]) {
 
 /// Writes `data` (one RGBA texel each, in index order) into the first rows of `texture`,
 /// padding the last row.
+/// RGBA texels per element for the 19 Clough–Tocher control points (57 floats).
+const BEZIER_TEXELS: usize = 15;
+
 fn write_texels(queue: &wgpu::Queue, texture: &wgpu::Texture, mut data: Vec<[f32; 4]>) {
     if data.is_empty() {
         return;
@@ -342,8 +345,8 @@ impl Renderer {
             mesh.display.positions.len(),
             "display-vertex radiosity",
         );
-        // Hermite control points, 8 texels per element, when the device can hold them.
-        let texels = mesh.elements.len() * 8;
+        // Hermite control points, 15 texels per element, when the device can hold them.
+        let texels = mesh.elements.len() * BEZIER_TEXELS;
         let bezier = ((texels as u64).div_ceil(VALUE_WIDTH as u64)
             <= device.limits().max_texture_dimension_2d as u64)
             .then(|| value_texture(device, texels, "Hermite control points"));
@@ -486,13 +489,13 @@ impl GpuMesh {
         if points.len() != self.elements {
             return false;
         }
-        // 30 floats per element padded to 32: 8 RGBA texels.
-        let mut floats: Vec<f32> = Vec::with_capacity(points.len() * 32);
+        // 57 floats per element padded to 60: 15 RGBA texels.
+        let mut floats: Vec<f32> = Vec::with_capacity(points.len() * BEZIER_TEXELS * 4);
         for b in points {
             for p in b {
                 floats.extend_from_slice(&p.to_array());
             }
-            floats.extend_from_slice(&[0.0, 0.0]);
+            floats.extend_from_slice(&[0.0; BEZIER_TEXELS * 4 - 57]);
         }
         let texels = floats
             .chunks_exact(4)

@@ -99,26 +99,33 @@ fn texel(t: texture_2d<f32>, i: u32) -> vec4<f32> {
     return textureLoad(t, vec2<i32>(i32(i % u.width), i32(i / u.width)), 0);
 }
 
+// Clough–Tocher element (see `Bezier` in src/mesh/display.rs): 19 control points in 15
+// texels, evaluated in the sub-triangle opposite the corner with the smallest barycentric.
 fn hermite(e: u32, bary: vec3<f32>) -> vec3<f32> {
-    var f: array<f32, 32>;
-    for (var k = 0u; k < 8u; k++) {
-        let t = texel(bezier_points, e * 8u + k);
+    var f: array<f32, 60>;
+    for (var k = 0u; k < 15u; k++) {
+        let t = texel(bezier_points, e * 15u + k);
         f[4u * k] = t.x;
         f[4u * k + 1u] = t.y;
         f[4u * k + 2u] = t.z;
         f[4u * k + 3u] = t.w;
     }
-    let uu = bary.x;
-    let vv = bary.y;
-    let ww = bary.z;
-    let w = array<f32, 10>(
-        uu * uu * uu, vv * vv * vv, ww * ww * ww,
-        3.0 * uu * uu * vv, 3.0 * uu * uu * ww, 3.0 * uu * vv * vv,
-        3.0 * vv * vv * ww, 3.0 * uu * ww * ww, 3.0 * vv * ww * ww,
-        6.0 * uu * vv * ww,
+    let m = min(bary.x, min(bary.y, bary.z));
+    let b1 = bary.x - m;
+    let b2 = bary.y - m;
+    let b3 = bary.z - m;
+    let b4 = 3.0 * m;
+    let w = array<f32, 19>(
+        b1 * b1 * b1, b2 * b2 * b2, b3 * b3 * b3,
+        3.0 * b1 * b1 * b2, 3.0 * b1 * b1 * b3, 3.0 * b1 * b2 * b2,
+        3.0 * b2 * b2 * b3, 3.0 * b1 * b3 * b3, 3.0 * b2 * b3 * b3,
+        3.0 * b1 * b1 * b4, 3.0 * b2 * b2 * b4, 3.0 * b3 * b3 * b4,
+        6.0 * b1 * b2 * b4, 6.0 * b1 * b3 * b4, 6.0 * b2 * b3 * b4,
+        3.0 * b1 * b4 * b4, 3.0 * b2 * b4 * b4, 3.0 * b3 * b4 * b4,
+        b4 * b4 * b4,
     );
     var b = vec3<f32>(0.0);
-    for (var k = 0u; k < 10u; k++) {
+    for (var k = 0u; k < 19u; k++) {
         b += w[k] * vec3<f32>(f[3u * k], f[3u * k + 1u], f[3u * k + 2u]);
     }
     return b;
