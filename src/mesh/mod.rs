@@ -309,7 +309,7 @@ impl Mesh {
             ));
         }
         let total_area: f64 = sources.iter().map(|s| area(&s.verts) as f64).sum();
-        let mut element_size = choose_element_size(&sources, total_area, settings);
+        let mut element_size = choose_element_size(&sources, total_area, settings, None);
         // D0 discontinuities: split each triangle along the lines where other surfaces
         // touch or pierce it; contacts shorter than half an element are finer than the
         // mesh and left to adaptive refinement. The element size is then chosen again for
@@ -354,7 +354,19 @@ impl Mesh {
                     .map(|s| if s.double_sided { 2 } else { 1 })
                     .sum();
                 if settings.max_elements.is_none_or(|b| coarsest <= b) {
-                    element_size = choose_element_size(&pieces, total_area, settings);
+                    // The default budget stays that of the input triangles: splitting
+                    // along contacts refines where it cuts, and coarsens the rest a little,
+                    // rather than growing the mesh.
+                    let input_sides: usize = sources
+                        .iter()
+                        .map(|s| if s.double_sided { 2 } else { 1 })
+                        .sum();
+                    element_size = choose_element_size(
+                        &pieces,
+                        total_area,
+                        settings,
+                        Some(default_budget(input_sides)),
+                    );
                     sources = pieces;
                     cut_edges = edges;
                 }
@@ -608,7 +620,22 @@ fn split_sources(
     (out, edges, unsplit)
 }
 
-fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSettings) -> f64 {
+/// The element budget when none is given: [`DEFAULT_ELEMENTS`], or half as many elements
+/// again as there are patch sides for large scenes, so their biggest triangles (floors,
+/// walls) are still subdivided.
+fn default_budget(sides: usize) -> usize {
+    DEFAULT_ELEMENTS.max(sides + sides / 2)
+}
+
+/// The element size for `sources`: `settings.element_size`, or the largest size whose
+/// element count fits the budget (`settings.max_elements`, else `default`, else
+/// [`default_budget`] of these sources), never below one element per patch side.
+fn choose_element_size(
+    sources: &[Source],
+    total_area: f64,
+    settings: &MeshSettings,
+    default: Option<usize>,
+) -> f64 {
     if let Some(s) = settings.element_size.filter(|s| *s > 0.0) {
         return s;
     }
@@ -620,11 +647,9 @@ fn choose_element_size(sources: &[Source], total_area: f64, settings: &MeshSetti
         .iter()
         .map(|s| if s.double_sided { 2 } else { 1 })
         .sum();
-    // By default large scenes get half as many elements again as they have patch sides, so
-    // their biggest triangles (floors, walls) are still subdivided.
     let budget = settings
         .max_elements
-        .unwrap_or(DEFAULT_ELEMENTS.max(coarsest + coarsest / 2))
+        .unwrap_or(default.unwrap_or(default_budget(coarsest)))
         .max(coarsest);
     if budget == coarsest {
         // Every triangle is one patch and one element: the size is that of the largest.
