@@ -294,6 +294,24 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
 }
 
 #[test]
+fn the_contact_line_switch_meshes_again_without_and_with_cuts() {
+    let mut h = harness(options("builtin:cornell"));
+    assert!(step_until(&mut h, 60.0, |a| a.mesh().is_some()));
+    assert!(!h.state().mesh().unwrap().cut_edges.is_empty());
+    for split in [false, true] {
+        let before = h.state().mesh().unwrap().clone();
+        h.get_by_label("Split at contact lines").click();
+        assert!(
+            step_until(&mut h, 60.0, |a| a
+                .mesh()
+                .is_some_and(|m| !std::sync::Arc::ptr_eq(m, &before))),
+            "no new mesh after the switch"
+        );
+        assert_eq!(!h.state().mesh().unwrap().cut_edges.is_empty(), split);
+    }
+}
+
+#[test]
 fn a_bad_file_shows_an_error_and_the_window_survives() {
     let dir = tempdir();
     let bad = dir.join("broken.gltf");

@@ -1422,7 +1422,16 @@ impl App {
         });
         let current = self.mesh.as_ref().map(|m| m.element_size).unwrap_or(0.0);
         ui.label(format!("in use: {current:.4} m"));
-        if ui.button("Mesh again with this size").clicked() {
+        let mut split = !self.mesh_settings.no_contact_lines;
+        let toggled = ui
+            .checkbox(&mut split, "Split at contact lines")
+            .on_hover_text(
+                "Cut surfaces where others touch or pierce them (a box's base on a floor), \
+                 so light and shadow do not leak across; meshes again",
+            )
+            .changed();
+        self.mesh_settings.no_contact_lines = !split;
+        if ui.button("Mesh again with this size").clicked() || toggled {
             let source = self.source.clone();
             self.open(source);
         }
