@@ -23,13 +23,12 @@ use spade::{
     AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation,
 };
 
-/// One piece of a split triangle: its vertices (same orientation as the triangle), its
-/// region (pieces of the same region meet without crossing a contact segment), and the
-/// contact segments lying along its edges.
+/// One piece of a split triangle: its vertices (same orientation as the triangle) and its
+/// region, numbered from 0 per triangle (pieces of the same region meet without crossing
+/// a contact segment).
 pub(super) struct Piece {
     pub verts: [Vec3; 3],
     pub region: u32,
-    pub cuts: Vec<[Vec3; 2]>,
 }
 
 /// Axis-aligned box of a triangle, grown by `pad`.
@@ -80,28 +79,42 @@ fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> V
     pairs
 }
 
-/// The segment where triangle `t` meets the plane of `r` (points within `tol` of the
-/// plane count as on it), clipped to `r`; `None` when they do not meet in a segment
-/// at least `min_len` long (before clipping), or when it runs along an edge of `r`. A face lying
-/// in the plane yields its edges (up to three segments).
-fn contact_segments(
-    r: &[Vec3; 3],
-    t: &[Vec3; 3],
-    tol: f64,
-    min_len: f64,
-) -> (Vec<[DVec3; 2]>, bool) {
+/// How triangle `t` meets the plane of `r` (points within `tol` of the plane count as on
+/// it).
+struct Contact {
+    /// The segment where they meet, clipped to `r`; none when it is shorter than
+    /// `min_len` (before clipping) or runs along an edge of `r`. A face lying in the plane
+    /// yields its edges (up to three segments).
+    segments: Vec<[DVec3; 2]>,
+    /// `t` lies in the plane.
+    coplanar: bool,
+    /// `t` lies against the front of `r`: in the plane and either in front of it, or (when
+    /// in the same plane to 1/1000 of `tol`) facing it (a box's bottom on a floor, a lamp
+    /// flush under a ceiling).
+    covers: bool,
+}
+
+fn contact(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Contact {
+    let none = Contact {
+        segments: Vec::new(),
+        coplanar: false,
+        covers: false,
+    };
     let r = r.map(|v| v.as_dvec3());
     let t = t.map(|v| v.as_dvec3());
     let n = (r[1] - r[0]).cross(r[2] - r[0]);
     let len = n.length();
-    if len <= 0.0 || !len.is_finite() {
-        return (Vec::new(), false);
+    let m = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+    if len <= 0.0 || !len.is_finite() || m == DVec3::ZERO {
+        return none;
     }
     let n = n / len;
     let d = t.map(|v| (v - r[0]).dot(n));
     let on = d.map(|x| x.abs() <= tol);
     let mut raw: Vec<[DVec3; 2]> = Vec::new();
     let coplanar = on.iter().all(|&o| o);
+    let mean = (d[0] + d[1] + d[2]) / 3.0;
+    let covers = coplanar && (mean > tol * 1e-3 || (mean.abs() <= tol * 1e-3 && m.dot(n) < 0.0));
     if coplanar {
         for k in 0..3 {
             raw.push([t[k], t[(k + 1) % 3]]);
@@ -183,7 +196,11 @@ fn contact_segments(
             out.push([ca, cb]);
         }
     }
-    (out, coplanar)
+    Contact {
+        segments: out,
+        coplanar,
+        covers,
+    }
 }
 
 /// What touches each triangle: the contact segments to split it along, and the faces lying
@@ -191,25 +208,6 @@ fn contact_segments(
 pub(super) struct Contacts {
     pub cuts: Vec<Vec<[Vec3; 2]>>,
     pub covers: Vec<Vec<u32>>,
-}
-
-/// Whether `t` lies against the front of `r`: all its vertices within `tol` of r's plane,
-/// and either in front of it, or (when they are in the same plane to 1/1000 of `tol`)
-/// facing it (a box's bottom on a floor, a lamp flush under a ceiling).
-fn covers(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64) -> bool {
-    let r = r.map(|v| v.as_dvec3());
-    let t = t.map(|v| v.as_dvec3());
-    let n = (r[1] - r[0]).cross(r[2] - r[0]).normalize_or_zero();
-    let m = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
-    if n == DVec3::ZERO || m == DVec3::ZERO {
-        return false;
-    }
-    let d = t.map(|v| (v - r[0]).dot(n));
-    if d.iter().any(|x| x.abs() > tol) {
-        return false;
-    }
-    let mean = (d[0] + d[1] + d[2]) / 3.0;
-    mean > tol * 1e-3 || (mean.abs() <= tol * 1e-3 && m.dot(n) < 0.0)
 }
 
 /// Whether point `p` (on a receiving triangle) lies under one of the faces `covers` (of
@@ -240,29 +238,26 @@ pub(super) fn find_cuts(
     tol: f32,
     min_len: f32,
 ) -> Contacts {
-    // Per receiver: segments, and whether each came from a face lying in its plane.
     use rayon::prelude::*;
     let pairs = overlapping_pairs(triangles, receivers, tol);
-    let hits: Vec<(u32, [DVec3; 2], bool)> = pairs
+    let contacts: Vec<Contact> = pairs
         .par_iter()
-        .flat_map_iter(|&(i, j)| {
+        .map(|&(i, j)| {
             let (r, t) = (&triangles[i as usize], &triangles[j as usize]);
-            let (segments, coplanar) = contact_segments(r, t, tol as f64, min_len as f64);
-            segments.into_iter().map(move |s| (i, s, coplanar))
+            contact(r, t, tol as f64, min_len as f64)
         })
         .collect();
-    let covering: Vec<(u32, u32)> = pairs
-        .par_iter()
-        .filter(|&&(i, j)| covers(&triangles[i as usize], &triangles[j as usize], tol as f64))
-        .copied()
-        .collect();
+    // Per receiver: the faces covering it, and the segments with whether each came from a
+    // face lying in its plane.
     let mut covers_of: Vec<Vec<u32>> = vec![Vec::new(); triangles.len()];
-    for (i, j) in covering {
-        covers_of[i as usize].push(j);
-    }
     let mut found: Vec<Vec<([DVec3; 2], bool)>> = vec![Vec::new(); triangles.len()];
-    for (i, s, coplanar) in hits {
-        found[i as usize].push((s, coplanar));
+    for (&(i, j), c) in pairs.iter().zip(contacts) {
+        if c.covers {
+            covers_of[i as usize].push(j);
+        }
+        for s in c.segments {
+            found[i as usize].push((s, c.coplanar));
+        }
     }
     let tol = tol as f64;
     let same = |a: &[DVec3; 2], b: &[DVec3; 2]| {
@@ -319,12 +314,7 @@ fn quiet_spade_panics() {
 /// Splits triangle `verts` along `cuts` (segments in its plane, inside it) into pieces
 /// with edges no longer than about `max_len` (0: no limit). `None` when the
 /// triangulation fails (then the triangle stays whole).
-pub(super) fn split(
-    verts: [Vec3; 3],
-    cuts: &[[Vec3; 2]],
-    first_region: u32,
-    max_len: f64,
-) -> Option<Vec<Piece>> {
+pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Option<Vec<Piece>> {
     let max_len = if max_len > 0.0 {
         max_len
     } else {
@@ -343,7 +333,9 @@ pub(super) fn split(
     let run = |refine: bool| -> Option<Vec<Piece>> {
         let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
             ConstrainedDelaunayTriangulation::new();
-        let corners = v.map(|p| cdt.insert(to2(p)));
+        for p in v {
+            cdt.insert(to2(p)).ok()?;
+        }
         // Cut ends are snapped onto the triangle (a point a rounding error outside would
         // grow the triangulation's hull by a sliver) and onto each other (ends of two
         // segments meeting at a corner of a footprint), within 1e-6 of the triangle's size.
@@ -416,7 +408,6 @@ pub(super) fn split(
                 chain(&mut cdt, a, b, parts)?;
             }
         }
-        corners.into_iter().collect::<Result<Vec<_>, _>>().ok()?;
         for k in 0..3 {
             let (a, b) = (c[k], c[(k + 1) % 3]);
             let mut parts = 1u32;
@@ -444,15 +435,11 @@ pub(super) fn split(
             );
         }
         // Constraint edges: the contact lines and the triangle's edges. Only the former
-        // separate regions and go into `Piece::cuts`.
-        let c2 = v.map(|p| {
-            let q = to2(p);
-            DVec2::new(q.x, q.y)
-        });
+        // separate regions.
         let on_boundary = |p: Point2<f64>| {
             let q = DVec2::new(p.x, p.y);
             (0..3).any(|k| {
-                let (a, b) = (c2[k], c2[(k + 1) % 3]);
+                let (a, b) = (c[k], c[(k + 1) % 3]);
                 let len = (b - a).length().max(1e-300);
                 ((b - a).perp_dot(q - a) / len).abs() <= 1e-9 * len
             })
@@ -474,7 +461,7 @@ pub(super) fn split(
             .map(|(k, f)| (f.fix(), k))
             .collect();
         let mut region = vec![u32::MAX; faces.len()];
-        let mut next = first_region;
+        let mut next = 0;
         for start in 0..faces.len() {
             if region[start] != u32::MAX {
                 continue;
@@ -507,25 +494,13 @@ pub(super) fn split(
             if nn.dot(n.as_vec3()) < 0.0 {
                 t.swap(1, 2);
             }
-            let cuts = f
-                .adjacent_edges()
-                .iter()
-                .filter(|e| is_cut(**e))
-                .map(|e| {
-                    let [a, b] = e.positions();
-                    [to3(a), to3(b)]
-                })
-                .collect();
             pieces.push(Piece {
                 verts: t,
                 region: region[k],
-                cuts,
             });
         }
         Some(pieces)
     };
-    // The triangulation asserts on inputs it cannot handle; a triangle it cannot split
-    // stays whole rather than ending the load.
     // The triangulation asserts on inputs it cannot handle (its refinement, with the
     // triangle's edges kept whole, can fail to place a point): then the triangle is split
     // without refinement, and failing that it stays whole rather than ending the load.
@@ -557,7 +532,7 @@ mod tests {
             Vec3::new(0.6, 0.0, -0.5),
             Vec3::new(0.6, 0.3, -0.5),
         ];
-        let (s, _) = contact_segments(&floor, &side, 1e-6, 1e-4);
+        let s = contact(&floor, &side, 1e-6, 1e-4).segments;
         assert_eq!(s.len(), 1);
         let [a, b] = s[0];
         assert!(
@@ -571,7 +546,7 @@ mod tests {
             Vec3::new(0.5, -1.0, 3.0),
             Vec3::new(0.5, 1.0, 0.0),
         ];
-        let (s, _) = contact_segments(&floor, &wall, 1e-6, 1e-4);
+        let s = contact(&floor, &wall, 1e-6, 1e-4).segments;
         assert_eq!(s.len(), 1);
         for p in s[0] {
             assert!((p.x - 0.5).abs() < 1e-6 && p.y.abs() < 1e-6);
@@ -580,14 +555,10 @@ mod tests {
         assert!(((s[0][1] - s[0][0]).length() - 1.5).abs() < 1e-5);
         // A neighbour sharing an edge cuts nothing.
         let neighbour = [floor[0], Vec3::new(-1.0, 0.0, 1.0), floor[1]];
-        assert!(
-            contact_segments(&floor, &neighbour, 1e-6, 1e-4)
-                .0
-                .is_empty()
-        );
+        assert!(contact(&floor, &neighbour, 1e-6, 1e-4).segments.is_empty());
         // Something above the floor cuts nothing.
         let above = side.map(|p| p + Vec3::Y * 0.01);
-        assert!(contact_segments(&floor, &above, 1e-6, 1e-4).0.is_empty());
+        assert!(contact(&floor, &above, 1e-6, 1e-4).segments.is_empty());
     }
 
     #[test]
@@ -605,7 +576,7 @@ mod tests {
             Vec3::new(0.2, 0.0, -0.6),
         ];
         let cuts: Vec<[Vec3; 2]> = (0..4).map(|k| [q[k], q[(k + 1) % 4]]).collect();
-        let pieces = split(t, &cuts, 7, 0.5).expect("split");
+        let pieces = split(t, &cuts, 0.5).expect("split");
         let n = (t[1] - t[0]).cross(t[2] - t[0]);
         let area = |v: &[Vec3; 3]| 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length() as f64;
         let total: f64 = pieces.iter().map(|p| area(&p.verts)).sum();
@@ -618,7 +589,7 @@ mod tests {
         let mut regions: Vec<u32> = pieces.iter().map(|p| p.region).collect();
         regions.sort();
         regions.dedup();
-        assert_eq!(regions, vec![7, 8]);
+        assert_eq!(regions, vec![0, 1]);
         let inside: f64 = pieces
             .iter()
             .filter(|p| {
@@ -668,7 +639,7 @@ mod tests {
                 || ((a.z.abs() - 0.2).abs() < 1e-5 && (a.z - b.z).abs() < 1e-5);
             assert!(on_outline, "{a} {b}");
         }
-        let pieces = split(ceiling, &cuts[0], 0, 0.5).expect("split");
+        let pieces = split(ceiling, &cuts[0], 0.5).expect("split");
         let regions: std::collections::HashSet<u32> = pieces.iter().map(|p| p.region).collect();
         assert_eq!(regions.len(), 2);
         // The lamp covers the ceiling's pieces inside the outline (they are hidden and not

@@ -57,8 +57,8 @@ pub struct DisplayMesh {
 impl DisplayMesh {
     /// Welds the corners of `elements` into shared vertices and records them in
     /// `Element::corners`. Positions closer than `scale × 1e-6` are the same point; points
-    /// on a contact line (`cut_edges`, see `Patch::cuts`) are shared only by patches of the
-    /// same region, so the light may jump across the line.
+    /// on a contact line (`cut_edges`, the ranges in `Patch::cuts`) are shared only by
+    /// patches of the same region, so the light may jump across the line.
     pub fn build(
         elements: &mut [Element],
         patches: &[Patch],
@@ -70,25 +70,11 @@ impl DisplayMesh {
         let on_line = (scale * 1e-5).max(f32::MIN_POSITIVE);
         let mut mesh = DisplayMesh::default();
         // Key: quantised position, material, side, region on a contact line (else MAX)
-        // → candidate vertices.
-        // A point is on a contact line when it lies on any contact segment of its
-        // triangle: a piece may touch the line at one corner without having an edge on it.
-        // (The pieces of a triangle store their segments one after another, so the
-        // triangle's segments are one range.)
-        let mut triangle_cuts: HashMap<u32, std::ops::Range<u32>> = HashMap::new();
-        for p in patches.iter().filter(|p| !p.cuts.is_empty()) {
-            let r = triangle_cuts
-                .entry(p.scene_triangle)
-                .or_insert(p.cuts.clone());
-            *r = r.start.min(p.cuts.start)..r.end.max(p.cuts.end);
-        }
+        // → candidate vertices. A point is on a contact line when it lies on any contact
+        // segment of its triangle (a piece may touch the line at only one corner).
         let key = |p: Vec3, patch: &Patch| {
             let q = (p / quantum).round();
-            let cuts = triangle_cuts
-                .get(&patch.scene_triangle)
-                .cloned()
-                .unwrap_or(0..0);
-            let on_cut = cuts.into_iter().any(|c| {
+            let on_cut = patch.cuts.clone().any(|c| {
                 let [a, b] = cut_edges[c as usize];
                 let ab = b - a;
                 let t =

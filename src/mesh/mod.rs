@@ -82,8 +82,8 @@ pub struct Patch {
     /// triangle share a region when they meet without crossing a contact line (see
     /// `contact`). Display vertices on a contact line are shared only within a region.
     pub region: u32,
-    /// Contact segments along the edges of the piece it was cut from, in
-    /// `Mesh::cut_edges`.
+    /// The contact segments its triangle was split along, in `Mesh::cut_edges` (empty
+    /// when it was not split).
     pub cuts: Range<u32>,
     /// Hidden under a face pressed against its front (a box's bottom on a floor, a lamp
     /// flush under a ceiling): it receives no light and is not drawn.
@@ -150,7 +150,8 @@ pub struct Mesh {
     /// (front side first, then back side for double-sided materials; empty when the
     /// triangle is degenerate).
     pub triangle_patches: Vec<Range<u32>>,
-    /// Contact (D0) segments the triangles were split along, mesh frame.
+    /// Contact (D0) segments the triangles were split along, each triangle's one after
+    /// another; mesh frame.
     pub cut_edges: Vec<[Vec3; 2]>,
 }
 
@@ -348,28 +349,20 @@ impl Mesh {
                     scene.name
                 ));
             }
-            if pieces.len() > sources.len() || any_covered {
-                let coarsest: usize = pieces
-                    .iter()
-                    .map(|s| if s.double_sided { 2 } else { 1 })
-                    .sum();
-                if settings.max_elements.is_none_or(|b| coarsest <= b) {
-                    // The default budget stays that of the input triangles: splitting
-                    // along contacts refines where it cuts, and coarsens the rest a little,
-                    // rather than growing the mesh.
-                    let input_sides: usize = sources
-                        .iter()
-                        .map(|s| if s.double_sided { 2 } else { 1 })
-                        .sum();
-                    element_size = choose_element_size(
-                        &pieces,
-                        total_area,
-                        settings,
-                        Some(default_budget(input_sides)),
-                    );
-                    sources = pieces;
-                    cut_edges = edges;
-                }
+            if (pieces.len() > sources.len() || any_covered)
+                && settings.max_elements.is_none_or(|b| sides(&pieces) <= b)
+            {
+                // The default budget stays that of the input triangles: splitting
+                // along contacts refines where it cuts, and coarsens the rest a little,
+                // rather than growing the mesh.
+                element_size = choose_element_size(
+                    &pieces,
+                    total_area,
+                    settings,
+                    Some(default_budget(sides(&sources))),
+                );
+                sources = pieces;
+                cut_edges = edges;
             }
         }
         let mut mesh = Mesh {
@@ -560,9 +553,10 @@ pub(crate) fn sanitize(v: Vec3) -> Vec3 {
 }
 
 /// The sources cut along their contact segments (`cuts`, per scene triangle) into pieces
-/// with edges up to about `max_len` (the patch length): the pieces
-/// (consecutive per triangle, as the patch ranges need), the contact segments along their
-/// edges, and how many triangles could not be split (kept whole). Pieces thinner than
+/// with edges up to about `max_len` (the patch length): the pieces (consecutive per
+/// triangle, as the patch ranges need), the segments of the triangles that were split
+/// (each piece's `cuts` is its triangle's), and how many triangles could not be split
+/// (kept whole). Pieces thinner than
 /// 1e-7 of their triangle's area are dropped (rounding slivers along a cut).
 fn split_sources(
     sources: &[Source],
@@ -578,7 +572,7 @@ fn split_sources(
             if c.is_empty() {
                 None
             } else {
-                Some(contact::split(s.verts, c, 0, max_len).unwrap_or_default())
+                Some(contact::split(s.verts, c, max_len).unwrap_or_default())
             }
         })
         .collect();
@@ -602,22 +596,32 @@ fn split_sources(
         };
         let a = area(&s.verts);
         let base = next_region;
+        let first = edges.len() as u32;
+        edges.extend_from_slice(&cuts[s.scene_triangle as usize]);
+        let range = first..edges.len() as u32;
         for piece in split {
             next_region = next_region.max(base + piece.region + 1);
             if area(&piece.verts) <= a * 1e-7 {
                 continue;
             }
-            let first = edges.len() as u32;
-            edges.extend_from_slice(&piece.cuts);
             out.push(Source {
                 verts: piece.verts,
                 region: base + piece.region,
-                cuts: first..edges.len() as u32,
+                cuts: range.clone(),
                 ..s.clone()
             });
         }
     }
     (out, edges, unsplit)
+}
+
+/// Patch sides of `sources`: one per single-sided source, two per double-sided one (the
+/// fewest elements they can have).
+fn sides(sources: &[Source]) -> usize {
+    sources
+        .iter()
+        .map(|s| if s.double_sided { 2 } else { 1 })
+        .sum()
 }
 
 /// The element budget when none is given: [`DEFAULT_ELEMENTS`], or half as many elements
@@ -643,10 +647,7 @@ fn choose_element_size(
         return 1.0;
     }
     // The coarsest mesh has one element per patch side; no budget can go below it.
-    let coarsest: usize = sources
-        .iter()
-        .map(|s| if s.double_sided { 2 } else { 1 })
-        .sum();
+    let coarsest = sides(sources);
     let budget = settings
         .max_elements
         .unwrap_or(default.unwrap_or(default_budget(coarsest)))
