@@ -285,8 +285,12 @@ fn moving_an_object_meshes_again_and_keeps_material_edits() {
         world_from_local: glam::DMat4::from_translation(shift)
             * objects[o as usize].world_from_local,
     });
+    // The material edit alone may converge before the worker takes the move: wait for
+    // the convergence that follows the new mesh.
+    let mut loaded = false;
     let events = until(&worker, |e| {
-        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+        loaded |= matches!(e, Event::Loaded { .. });
+        matches!(e, Event::Failed { .. }) || (loaded && matches!(e, Event::Converged { .. }))
     });
     let (moved, materials) = events
         .iter()

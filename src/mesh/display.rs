@@ -52,6 +52,24 @@ pub struct DisplayMesh {
     /// from that edge (the mean of `a` and `b`), so the shading has no crack there.
     /// Ordered coarse edges first, so chains of T-vertices resolve in one pass.
     pub hanging: Vec<[u32; 3]>,
+    /// Which side of hard shadow edges vertices and elements are on (set by
+    /// `solver::mark_hard_shadows`; `None`: no hard shadow edges).
+    pub shadow_sides: Option<ShadowSides>,
+}
+
+/// Sides of hard shadow edges: the shadows of point, spot and directional lights and the
+/// sun, across which the light jumps. A vertex of an element such an edge crosses takes
+/// the area-weighted mean of the elements around it that see the same lights as it does,
+/// and no slope: vertex values do not average the two sides, so the reconstruction goes
+/// from one side's light to the other's within the crossed elements (no blur beyond them),
+/// and no slope is fitted across the jump (Hermite would ring beside the shadow).
+#[derive(Clone, Debug, Default)]
+pub struct ShadowSides {
+    /// Per display vertex on a crossed element: which sources it sees (a bit per source),
+    /// if some element around it sees the same; `None` elsewhere.
+    pub vertex: Vec<Option<u64>>,
+    /// Per element: which sources its centroid sees (0 where no corner is on an edge).
+    pub element: Vec<u64>,
 }
 
 impl DisplayMesh {
@@ -278,14 +296,28 @@ impl DisplayMesh {
     /// centroids of the elements around it: its value at the vertex (clamped at 0) and its
     /// gradient per channel. Unlike the plain area-weighted mean, this is exact for linear
     /// light and extrapolates at a surface's boundary instead of flattening it. Where the
-    /// elements around a vertex do not span two directions, the mean and no slope.
+    /// elements around a vertex do not span two directions, the mean and no slope. On a
+    /// hard shadow edge, the mean of the elements on the vertex's side and no slope (see
+    /// [`ShadowSides`]).
     fn fit(&self, elements: &[Element], values: &[Vec3]) -> (Vec<Vec3>, Vec<[Vec3; 3]>) {
         let nv = self.positions.len();
+        // Whether element `i` counts for vertex `k`: on a hard shadow edge, only the
+        // elements on the vertex's side of it.
+        let counts = |i: usize, k: usize| match &self.shadow_sides {
+            Some(s) => match s.vertex.get(k).copied().flatten() {
+                Some(side) => s.element.get(i) == Some(&side),
+                None => true,
+            },
+            None => true,
+        };
         // Fallback values: area-weighted means (where the plane fit is not determined).
         let mut sum = vec![Vec3::ZERO; nv];
         let mut weight = vec![0.0f32; nv];
-        for (e, v) in elements.iter().zip(values) {
+        for (i, (e, v)) in elements.iter().zip(values).enumerate() {
             for &c in &e.corners {
+                if !counts(i, c as usize) {
+                    continue;
+                }
                 sum[c as usize] += *v * e.area;
                 weight[c as usize] += e.area;
             }
@@ -307,10 +339,13 @@ impl DisplayMesh {
             .iter()
             .map(|n| crate::solver::lighting::orthonormal_basis(*n))
             .collect();
-        for (e, v) in elements.iter().zip(values) {
+        for (i, (e, v)) in elements.iter().zip(values).enumerate() {
             let c = e.centroid();
             for &k in &e.corners {
                 let k = k as usize;
+                if !counts(i, k) {
+                    continue;
+                }
                 let d = c - self.positions[k];
                 let (t1, t2) = basis[k];
                 let (d1, d2) = (d.dot(t1) as f64, d.dot(t2) as f64);
@@ -332,6 +367,11 @@ impl DisplayMesh {
         }
         let mut grads = vec![[Vec3::ZERO; 3]; nv];
         for k in 0..nv {
+            if self.on_shadow_edge(k) {
+                // A plane fitted to one side's elements extrapolates to the vertex from
+                // beside it (to black, where noisy values tilt it): the side's mean, flat.
+                continue;
+            }
             let [s00, s01, s02, s11, s12, s22] = m[k];
             // Cofactors of the symmetric matrix.
             let c00 = s11 * s22 - s12 * s12;
@@ -358,6 +398,13 @@ impl DisplayMesh {
             vals[k] = a;
         }
         (vals, grads)
+    }
+
+    /// Whether vertex `k` is a corner of an element a hard shadow edge crosses.
+    fn on_shadow_edge(&self, k: usize) -> bool {
+        self.shadow_sides
+            .as_ref()
+            .is_some_and(|s| s.vertex.get(k).copied().flatten().is_some())
     }
 
     /// Vertex values and gradients for [`Reconstruction::Hermite`].

@@ -19,7 +19,9 @@ mod contact;
 mod display;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
-pub use display::{Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, eval_bezier};
+pub use display::{
+    Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
+};
 
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};

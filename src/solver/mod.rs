@@ -479,6 +479,7 @@ impl Solver {
         self.refine_passes += 1;
         let mut mesh = (*self.mesh).clone();
         let moved = mesh.refine(&marked);
+        mark_hard_shadows(&mut mesh, &self.bvh, &self.external, min_size);
         let mesh = Arc::new(mesh);
         let n = mesh.elements.len();
         self.radiosity = remap(&self.radiosity, &moved, n);
@@ -605,24 +606,7 @@ impl Solver {
     fn mark_visibility_changes(&self, marked: &mut [bool], min_size: f64) {
         let mesh = &self.mesh;
         let eps = mesh.epsilon();
-        let far = mesh.scale * 4.0;
-        // Targets: a point (mesh frame, with its triangle to skip) or a direction.
-        let mut points: Vec<(Vec3, u32)> = Vec::new();
-        let mut directions: Vec<Vec3> = Vec::new();
-        for light in &self.external.lights {
-            match light {
-                crate::scene::Light::Point { position, .. }
-                | crate::scene::Light::Spot { position, .. } => {
-                    points.push((mesh.to_local(*position), u32::MAX))
-                }
-                crate::scene::Light::Directional { direction, .. } => {
-                    directions.push((-direction.as_vec3()).normalize_or_zero())
-                }
-            }
-        }
-        if let Some((d, _)) = self.external.environment.as_ref().and_then(|e| e.sun) {
-            directions.push(d.as_vec3().normalize_or_zero());
-        }
+        let mut targets = Targets::punctual(mesh, &self.external);
         let power: Vec<f64> = mesh
             .patches
             .iter()
@@ -643,45 +627,13 @@ impl Solver {
         order.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
         for &p in order.iter().take(8) {
             let patch = &mesh.patches[p];
-            points.push((patch.centroid() + patch.normal * eps, patch.scene_triangle));
+            targets
+                .points
+                .push((patch.centroid() + patch.normal * eps, patch.scene_triangle));
         }
-        if points.is_empty() && directions.is_empty() {
-            return;
-        }
-        let bvh = &self.bvh;
-        let extra: Vec<u32> = (0..mesh.elements.len())
-            .into_par_iter()
-            .with_min_len(64)
-            .filter(|&i| {
-                let e = &mesh.elements[i];
-                if marked[i] || crate::mesh::element_size(e) * 0.5 < min_size * 0.999 {
-                    return false;
-                }
-                let own = mesh.patches[e.patch as usize].scene_triangle;
-                let c = e.centroid();
-                // Corners pulled 1 % towards the centroid (a corner exactly on a contact
-                // line is ambiguous) and lifted off the surface.
-                let corners = e.verts.map(|v| v + (c - v) * 0.01 + e.normal * eps);
-                let disagree = |vis: [bool; 3]| vis[0] != vis[1] || vis[1] != vis[2];
-                let seen_points = points.iter().any(|&(t, tri)| {
-                    if e.normal.dot(t - c) <= 0.0 {
-                        return false;
-                    }
-                    disagree(corners.map(|x| bvh.transmittance(x, t, [own, tri]) > 0.5))
-                });
-                seen_points
-                    || directions.iter().any(|&d| {
-                        if e.normal.dot(d) <= 0.0 {
-                            return false;
-                        }
-                        disagree(
-                            corners
-                                .map(|x| bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5),
-                        )
-                    })
-            })
-            .map(|i| i as u32)
-            .collect();
+        let extra = targets.changes(mesh, &self.bvh, |i| {
+            marked[i] || crate::mesh::element_size(&mesh.elements[i]) * 0.5 < min_size * 0.999
+        });
         for i in extra {
             marked[i as usize] = true;
         }
@@ -1201,4 +1153,166 @@ impl Solver {
             1.0
         }
     }
+}
+
+/// Light sources for corner-visibility tests: points in the mesh frame (with the scene
+/// triangle a ray to it skips) and directions towards lights at infinity.
+struct Targets {
+    points: Vec<(Vec3, u32)>,
+    directions: Vec<Vec3>,
+}
+
+impl Targets {
+    /// Point, spot and directional lights and the sun: the sources whose shadows are hard.
+    fn punctual(mesh: &Mesh, external: &ExternalLight) -> Targets {
+        let mut t = Targets {
+            points: Vec::new(),
+            directions: Vec::new(),
+        };
+        for light in &external.lights {
+            match light {
+                crate::scene::Light::Point { position, .. }
+                | crate::scene::Light::Spot { position, .. } => {
+                    t.points.push((mesh.to_local(*position), u32::MAX))
+                }
+                crate::scene::Light::Directional { direction, .. } => t
+                    .directions
+                    .push((-direction.as_vec3()).normalize_or_zero()),
+            }
+        }
+        if let Some((d, _)) = external.environment.as_ref().and_then(|e| e.sun) {
+            t.directions.push(d.as_vec3().normalize_or_zero());
+        }
+        t
+    }
+
+    /// Which of the sources point `p` (normal `n`, on scene triangle `own`) sees: a bit
+    /// per source, points first (the first 64).
+    fn seen(&self, mesh: &Mesh, bvh: &Bvh, p: Vec3, n: Vec3, own: u32) -> u64 {
+        let x = p + n * mesh.epsilon();
+        let far = mesh.scale * 4.0;
+        let points = self
+            .points
+            .iter()
+            .map(|&(t, tri)| n.dot(t - p) > 0.0 && bvh.transmittance(x, t, [own, tri]) > 0.5);
+        let directions = self
+            .directions
+            .iter()
+            .map(|&d| n.dot(d) > 0.0 && bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5);
+        points
+            .chain(directions)
+            .take(64)
+            .enumerate()
+            .fold(0, |m, (b, seen)| m | (u64::from(seen) << b))
+    }
+
+    /// The elements (other than those `skip` names) whose three corners disagree about
+    /// seeing one of the sources: a shadow boundary crosses them. Corners are pulled 1 %
+    /// towards the centroid (a corner exactly on a contact line is ambiguous) and lifted
+    /// off the surface.
+    fn changes(&self, mesh: &Mesh, bvh: &Bvh, skip: impl Fn(usize) -> bool + Sync) -> Vec<u32> {
+        if self.points.is_empty() && self.directions.is_empty() {
+            return Vec::new();
+        }
+        let eps = mesh.epsilon();
+        let far = mesh.scale * 4.0;
+        (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .filter(|&i| {
+                if skip(i) {
+                    return false;
+                }
+                let e = &mesh.elements[i];
+                let own = mesh.patches[e.patch as usize].scene_triangle;
+                let c = e.centroid();
+                let corners = e.verts.map(|v| v + (c - v) * 0.01 + e.normal * eps);
+                let disagree = |vis: [bool; 3]| vis[0] != vis[1] || vis[1] != vis[2];
+                let seen_points = self.points.iter().any(|&(t, tri)| {
+                    if e.normal.dot(t - c) <= 0.0 {
+                        return false;
+                    }
+                    disagree(corners.map(|x| bvh.transmittance(x, t, [own, tri]) > 0.5))
+                });
+                seen_points
+                    || self.directions.iter().any(|&d| {
+                        if e.normal.dot(d) <= 0.0 {
+                            return false;
+                        }
+                        disagree(
+                            corners
+                                .map(|x| bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5),
+                        )
+                    })
+            })
+            .map(|i| i as u32)
+            .collect()
+    }
+}
+
+/// Records the sides of hard shadow edges in `mesh.display.shadow_sides` (see
+/// [`crate::mesh::ShadowSides`]): the elements across which the visibility of a point,
+/// spot or directional light or the sun changes, and for their corners and the elements
+/// around those, which of these sources each sees. Only where adaptive subdivision has
+/// resolved the edge, in elements it may not split further (below twice `min_size`):
+/// where the mesh is coarser than the shadows (the refinement stopped at its element
+/// budget), the element values are scattered samples of them, and choosing sides at each
+/// vertex would show that scatter as speckle, where averaging smooths it. Area lights'
+/// shadows have penumbrae and are left to the smooth reconstruction.
+pub fn mark_hard_shadows(mesh: &mut Mesh, bvh: &Bvh, external: &ExternalLight, min_size: f64) {
+    mesh.display.shadow_sides = None;
+    let targets = Targets::punctual(mesh, external);
+    let crossed = targets.changes(mesh, bvh, |i| {
+        crate::mesh::element_size(&mesh.elements[i]) * 0.5 >= min_size * 0.999
+    });
+    if crossed.is_empty() {
+        return;
+    }
+    let nv = mesh.display.positions.len();
+    // Corners of crossed elements, each with an element using it (for the triangle its
+    // shadow rays skip).
+    let mut owner = vec![u32::MAX; nv];
+    for &i in &crossed {
+        for &c in &mesh.elements[i as usize].corners {
+            owner[c as usize] = i;
+        }
+    }
+    let elements = &mesh.elements;
+    let own = |i: u32| mesh.patches[elements[i as usize].patch as usize].scene_triangle;
+    let element: Vec<u64> = elements
+        .par_iter()
+        .with_min_len(256)
+        .map(|e| {
+            if e.corners.iter().all(|&c| owner[c as usize] == u32::MAX) {
+                return 0;
+            }
+            let tri = mesh.patches[e.patch as usize].scene_triangle;
+            targets.seen(mesh, bvh, e.centroid(), e.normal, tri)
+        })
+        .collect();
+    let display = &mesh.display;
+    let mut vertex: Vec<Option<u64>> = (0..nv)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|k| {
+            let i = owner[k];
+            (i != u32::MAX).then(|| {
+                let e = &elements[i as usize];
+                targets.seen(mesh, bvh, display.positions[k], e.normal, own(i))
+            })
+        })
+        .collect();
+    // A vertex with no element on its side (a sliver of light) keeps all of them.
+    let mut matched = vec![false; nv];
+    for (e, side) in elements.iter().zip(&element) {
+        for &c in &e.corners {
+            matched[c as usize] |= vertex[c as usize] == Some(*side);
+        }
+    }
+    for (v, m) in vertex.iter_mut().zip(matched) {
+        if !m {
+            *v = None;
+        }
+    }
+    mesh.display.shadow_sides = Some(crate::mesh::ShadowSides { vertex, element });
 }
