@@ -264,7 +264,7 @@ pub(super) fn find_cuts(
         ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
             || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
     };
-    let cuts = found
+    let mut cuts: Vec<Vec<[Vec3; 2]>> = found
         .into_iter()
         .map(|segments| {
             // An edge shared by two faces lying in the plane (the diagonal of a quad lamp
@@ -287,9 +287,74 @@ pub(super) fn find_cuts(
                 .collect()
         })
         .collect();
+    carry_cut_ends(triangles, receivers, &mut cuts, tol);
     Contacts {
         cuts,
         covers: covers_of,
+    }
+}
+
+/// A cut that ends inside a triangle's edge puts a vertex there; the triangles sharing
+/// that edge get it too, as a zero-length cut (a point to split at), unless they have a
+/// cut end there already (the contact line goes on into them), so the mesh stays
+/// conforming where a contact line ends on an edge (a short contact dropped on one side,
+/// or one ending exactly there) instead of leaving a T-junction. Edges are shared when
+/// their end points are bit for bit the same (indexed meshes).
+fn carry_cut_ends(
+    triangles: &[[Vec3; 3]],
+    receivers: &[bool],
+    cuts: &mut [Vec<[Vec3; 2]>],
+    tol: f64,
+) {
+    use std::collections::HashMap;
+    let key = |a: Vec3, b: Vec3| {
+        let (a, b) = (
+            a.to_array().map(f32::to_bits),
+            b.to_array().map(f32::to_bits),
+        );
+        if a <= b { (a, b) } else { (b, a) }
+    };
+    let mut edges: HashMap<_, Vec<u32>> = HashMap::new();
+    for (i, t) in triangles.iter().enumerate() {
+        if receivers[i] {
+            for k in 0..3 {
+                edges
+                    .entry(key(t[k], t[(k + 1) % 3]))
+                    .or_default()
+                    .push(i as u32);
+            }
+        }
+    }
+    let mut carried: Vec<(u32, Vec3)> = Vec::new();
+    for (i, segments) in cuts.iter().enumerate() {
+        let t = &triangles[i];
+        for q in segments.iter().flatten() {
+            for k in 0..3 {
+                let (a, b) = (t[k].as_dvec3(), t[(k + 1) % 3].as_dvec3());
+                let d = b - a;
+                let len = d.length();
+                if len <= 2.0 * tol {
+                    continue;
+                }
+                let x = (q.as_dvec3() - a).dot(d) / len; // along the edge
+                let off = (a + d * (x / len) - q.as_dvec3()).length();
+                if off > tol || x <= tol || x >= len - tol {
+                    continue; // not inside this edge
+                }
+                for &j in &edges[&key(t[k], t[(k + 1) % 3])] {
+                    if j as usize != i {
+                        carried.push((j, *q));
+                    }
+                }
+            }
+        }
+    }
+    for (j, q) in carried {
+        let near = |p: &Vec3| (p.as_dvec3() - q.as_dvec3()).length() <= tol;
+        let list = &mut cuts[j as usize];
+        if !list.iter().flatten().any(near) {
+            list.push([q, q]);
+        }
     }
 }
 
@@ -721,5 +786,78 @@ mod tests {
             inside_patches += inside as usize;
         }
         assert!(inside_patches > 0);
+    }
+
+    #[test]
+    fn a_contact_line_ending_on_an_edge_puts_a_vertex_on_both_sides() {
+        use crate::scene::{Material, Object, Scene};
+        use glam::DMat4;
+        // A floor of two triangles sharing the diagonal x = z, and a wall standing on the
+        // first whose foot ends on the diagonal at q. The second triangle touches the wall
+        // only at q (no contact segment of its own): it must still get a vertex there, or
+        // the first triangle's vertex at q would hang inside its edge (a T-junction).
+        let object = |name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>| Object {
+            name: name.into(),
+            world_from_local: DMat4::IDENTITY,
+            triangle_material: vec![0; triangles.len()],
+            positions,
+            triangles,
+            ..Default::default()
+        };
+        let floor = object(
+            "floor",
+            vec![
+                Vec3::new(-1.0, 0.0, -1.0),
+                Vec3::new(-1.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, -1.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let (p, q) = (Vec3::new(-0.6, 0.0, 0.2), Vec3::new(0.1, 0.0, 0.1));
+        let up = Vec3::Y * 0.5;
+        let wall = object(
+            "wall",
+            vec![p, q, q + up, p + up],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let scene = Scene {
+            name: "wall on a floor".into(),
+            objects: vec![floor, wall],
+            materials: vec![Material::diffuse("white", Vec3::splat(0.5))],
+            ..Default::default()
+        };
+        let mesh = crate::mesh::Mesh::build(
+            &scene,
+            &crate::mesh::MeshSettings {
+                element_size: Some(0.25),
+                ..Default::default()
+            },
+        );
+        let q = mesh.to_local(q.as_dvec3());
+        for triangle in [0, 1] {
+            let patches: Vec<_> = mesh
+                .patches
+                .iter()
+                .filter(|p| p.scene_triangle == triangle)
+                .collect();
+            assert!(
+                patches
+                    .iter()
+                    .any(|p| p.verts.iter().any(|v| (*v - q).length() < 1e-5)),
+                "floor triangle {triangle} has no vertex at the wall's foot"
+            );
+            for p in &patches {
+                for k in 0..3 {
+                    let (a, b) = (p.verts[k], p.verts[(k + 1) % 3]);
+                    let t = (q - a).dot(b - a) / (b - a).length_squared();
+                    let off = (a + (b - a) * t - q).length();
+                    assert!(
+                        !(off < 1e-5 && t > 1e-4 && t < 1.0 - 1e-4),
+                        "q hangs inside an edge of floor triangle {triangle}"
+                    );
+                }
+            }
+        }
     }
 }
