@@ -341,7 +341,8 @@ fn carry_cut_ends(
                 if off > tol || x <= tol || x >= len - tol {
                     continue; // not inside this edge
                 }
-                for &j in &edges[&key(t[k], t[(k + 1) % 3])] {
+                let sharing = edges.get(&key(t[k], t[(k + 1) % 3]));
+                for &j in sharing.into_iter().flatten() {
                     if j as usize != i {
                         carried.push((j, *q));
                     }
