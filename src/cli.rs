@@ -211,6 +211,10 @@ pub struct SolveOptions {
     /// (D0 discontinuity meshing is on by default).
     #[arg(long)]
     pub no_contact_lines: bool,
+    /// Do not split triangles along the hard shadow edges of point, spot and directional
+    /// lights and the sun (on by default).
+    #[arg(long)]
+    pub no_shadow_lines: bool,
     /// Uniform sky radiance, W/(m²·sr): one value or r,g,b. Default for scenes without light: 1.
     #[arg(long, value_parser = parse_rgb)]
     pub sky: Option<Vec3>,
@@ -274,6 +278,7 @@ impl SolveOptions {
             element_size: self.element_size,
             max_elements: self.max_elements,
             no_contact_lines: self.no_contact_lines,
+            no_shadow_lines: self.no_shadow_lines,
         }
     }
 

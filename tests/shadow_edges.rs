@@ -6,8 +6,11 @@
 //! (sun) or moved and scaled (point light) along the floor, so where the step lies is
 //! known exactly, and it runs askew to the mesh.
 //!
-//! Adaptive subdivision refines the elements whose corners disagree about seeing the light
-//! down to the minimum size. A reconstruction must then keep the jump within those crossed
+//! Two remedies, each tested alone. By default the floor is split along the shadow lines
+//! before solving (the shadows of the square's edges, `src/mesh/shadow.rs`), so even a
+//! coarse mesh has the step exactly where it is. Without that, adaptive subdivision
+//! refines the elements whose corners disagree about seeing the light down to the
+//! minimum size, and a reconstruction must then keep the jump within those crossed
 //! elements (vertex values must not average the two sides) and must not ring beside it
 //! (Hermite's cubics, with slopes fitted across the jump, overshoot: a bright halo next to
 //! the shadow, a dark one inside it): C⁰ where the light is discontinuous, as the issue
@@ -174,19 +177,34 @@ struct Probe {
 
 /// Solves and probes the scene at `place`; distances and values are reported in the
 /// scene's own units (lengths divided by the scale).
-fn solve_and_probe(lamp: Lamp, mode: Reconstruction, place: Place) -> (Vec<Probe>, usize) {
+/// The two remedies: splitting the receivers along the shadow lines before solving, or
+/// adaptive subdivision to the minimum size; or both (the default).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Remedy {
+    ShadowLines,
+    Refinement,
+    Both,
+}
+
+fn solve_and_probe(
+    lamp: Lamp,
+    mode: Reconstruction,
+    place: Place,
+    remedy: Remedy,
+) -> (Vec<Probe>, usize) {
     let scene = scene(lamp, place);
     let p = Prepared::new(
         &scene,
         &MeshSettings {
             element_size: Some(0.25 * place.scale),
+            no_shadow_lines: remedy == Remedy::Refinement,
             ..Default::default()
         },
     );
     let mut s = p
         .solver(SolverSettings {
             tolerance: 1e-6,
-            adaptive: Some(AdaptiveSettings {
+            adaptive: (remedy != Remedy::ShadowLines).then(|| AdaptiveSettings {
                 min_size: Some(MIN_SIZE * place.scale),
                 max_passes: 6,
                 ..Default::default()
@@ -247,7 +265,7 @@ fn check(lamp: Lamp, mode: Reconstruction, place: Place) {
     // that side's light. 3.5 cm leaves a margin for elements the shadow's corner pokes
     // into without separating their corners, which the corner test does not see.
     let beyond = 1.25 * MIN_SIZE * std::f64::consts::SQRT_2;
-    let (probes, elements) = solve_and_probe(lamp, mode, place);
+    let (probes, elements) = solve_and_probe(lamp, mode, place, Remedy::Refinement);
     let far = worst_beyond(&probes, beyond);
     let near: Vec<f64> = probes
         .iter()
@@ -260,7 +278,10 @@ fn check(lamp: Lamp, mode: Reconstruction, place: Place) {
         .map(|p| p.value - 1.0)
         .fold(f64::MIN, f64::max);
     let under = probes.iter().map(|p| -p.value).fold(f64::MIN, f64::max);
-    let at = format!("{lamp:?}, {mode:?}, ×{} at {}", place.scale, place.offset);
+    let at = format!(
+        "refinement, {lamp:?}, {mode:?}, ×{} at {}",
+        place.scale, place.offset
+    );
     println!(
         "{at}: {elements} elements; worst error beyond {beyond:.3} of the edge {far:.4}, \
          mean error within it {near_mean:.4}; above the lit value {over:.4}, below zero \
@@ -325,3 +346,53 @@ fn hard_shadow_edges_hold_far_from_the_origin_and_at_millimetre_scale() {
 /// h²/8 · |B''|; below a point light 1.2 m up, |B''|/B ≤ 3/1.2² = 2.1 m⁻² (B ∝ h/r³), so
 /// 1.6 % of B. Hermite is closer (measured: Gouraud 0.7 %, Hermite 0.35 %).
 const POINT_TOLERANCE: f64 = 0.02;
+
+#[test]
+fn shadow_lines_make_the_edge_exact_on_a_coarse_mesh() {
+    // Split along the shadow lines before solving: every element is wholly lit or wholly
+    // in shadow, and the display does not blend across the line, so the step is right up
+    // to it (2 mm, a tenth of the refinement's minimum size above). The sun's light is
+    // constant on each side, so the uniform 25 cm mesh alone must be exact. The point
+    // light's falls off smoothly, which linear reconstruction over 25 cm elements misses
+    // by up to 4 % under the light (and more next to the line, where the vertex fits see
+    // one side only): there the default refinement (shadow lines and subdivision) must
+    // meet `POINT_TOLERANCE` from 2 mm off the line, where refinement alone needed 3.5 cm.
+    for (lamp, remedy) in [
+        (Lamp::Sun, Remedy::ShadowLines),
+        (Lamp::Point, Remedy::Both),
+    ] {
+        for mode in [
+            Reconstruction::Flat,
+            Reconstruction::Gouraud,
+            Reconstruction::Hermite,
+        ] {
+            if matches!(lamp, Lamp::Point) && mode == Reconstruction::Flat {
+                continue; // a constant per element is off by the light's slope anyway
+            }
+            let (probes, elements) = solve_and_probe(lamp, mode, HERE, remedy);
+            let far = worst_beyond(&probes, 0.002);
+            let over = probes
+                .iter()
+                .map(|p| p.value - 1.0)
+                .fold(f64::MIN, f64::max);
+            let under = probes.iter().map(|p| -p.value).fold(f64::MIN, f64::max);
+            println!(
+                "{remedy:?}, {lamp:?}, {mode:?}: {elements} elements; worst error beyond \
+                 2 mm of the edge {far:.4}; above the lit value {over:.4}, below zero {under:.4}"
+            );
+            let tolerance = match lamp {
+                Lamp::Sun => 1e-3,
+                Lamp::Point => POINT_TOLERANCE,
+            };
+            assert!(
+                far < tolerance,
+                "{lamp:?}, {mode:?}: off by {far} beyond 2 mm"
+            );
+            assert!(
+                over < tolerance,
+                "{lamp:?}, {mode:?}: {over} above the lit value"
+            );
+            assert!(under < tolerance, "{lamp:?}, {mode:?}: {under} below zero");
+        }
+    }
+}

@@ -40,7 +40,11 @@ fn bounds(t: &[Vec3; 3], pad: f32) -> (Vec3, Vec3) {
 
 /// Pairs (i, j), i ≠ j, of `triangles` whose boxes (grown by `pad`) overlap, for the `i`
 /// in `receivers`; sweep and prune along the longest axis of the scene.
-fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> Vec<(u32, u32)> {
+pub(super) fn overlapping_pairs(
+    triangles: &[[Vec3; 3]],
+    receivers: &[bool],
+    pad: f32,
+) -> Vec<(u32, u32)> {
     let boxes: Vec<(Vec3, Vec3)> = triangles.iter().map(|t| bounds(t, pad)).collect();
     let (lo, hi) = boxes.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -81,20 +85,20 @@ fn overlapping_pairs(triangles: &[[Vec3; 3]], receivers: &[bool], pad: f32) -> V
 
 /// How triangle `t` meets the plane of `r` (points within `tol` of the plane count as on
 /// it).
-struct Contact {
+pub(super) struct Contact {
     /// The segment where they meet, clipped to `r`; none when it is shorter than
     /// `min_len` (before clipping) or runs along an edge of `r`. A face lying in the plane
     /// yields its edges (up to three segments).
-    segments: Vec<[DVec3; 2]>,
+    pub segments: Vec<[DVec3; 2]>,
     /// `t` lies in the plane.
-    coplanar: bool,
+    pub coplanar: bool,
     /// `t` lies against the front of `r`: in the plane and either in front of it, or (when
     /// in the same plane to 1/1000 of `tol`) facing it (a box's bottom on a floor, a lamp
     /// flush under a ceiling).
     covers: bool,
 }
 
-fn contact(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Contact {
+pub(super) fn contact(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> Contact {
     let none = Contact {
         segments: Vec::new(),
         coplanar: false,
@@ -264,7 +268,7 @@ pub(super) fn find_cuts(
         ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
             || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
     };
-    let mut cuts: Vec<Vec<[Vec3; 2]>> = found
+    let cuts: Vec<Vec<[Vec3; 2]>> = found
         .into_iter()
         .map(|segments| {
             // An edge shared by two faces lying in the plane (the diagonal of a quad lamp
@@ -287,7 +291,6 @@ pub(super) fn find_cuts(
                 .collect()
         })
         .collect();
-    carry_cut_ends(triangles, receivers, &mut cuts, tol);
     Contacts {
         cuts,
         covers: covers_of,
@@ -300,7 +303,7 @@ pub(super) fn find_cuts(
 /// conforming where a contact line ends on an edge (a short contact dropped on one side,
 /// or one ending exactly there) instead of leaving a T-junction. Edges are shared when
 /// their end points are bit for bit the same (indexed meshes).
-fn carry_cut_ends(
+pub(super) fn carry_cut_ends(
     triangles: &[[Vec3; 3]],
     receivers: &[bool],
     cuts: &mut [Vec<[Vec3; 2]>],

@@ -310,14 +310,18 @@ impl DisplayMesh {
             },
             None => true,
         };
-        // Fallback values: area-weighted means (where the plane fit is not determined).
+        // Fallback values: area-weighted means (where the plane fit is not determined);
+        // and the range of the values around each vertex.
         let mut sum = vec![Vec3::ZERO; nv];
         let mut weight = vec![0.0f32; nv];
+        let mut range = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); nv];
         for (i, (e, v)) in elements.iter().zip(values).enumerate() {
             for &c in &e.corners {
                 if !counts(i, c as usize) {
                     continue;
                 }
+                let r = &mut range[c as usize];
+                *r = (r.0.min(*v), r.1.max(*v));
                 sum[c as usize] += *v * e.area;
                 weight[c as usize] += e.area;
             }
@@ -389,7 +393,12 @@ impl DisplayMesh {
             let mut a = Vec3::ZERO;
             for ch in 0..3 {
                 let [r0, r1, r2] = r[k][ch];
-                let a_ch = (c00 * r0 + c01 * r1 + c02 * r2) / det;
+                // An ill-conditioned fit (a sliver beside the vertex) can put the plane's
+                // value far outside the data: keep it within the values around the vertex
+                // widened by their spread (room for a ramp's extrapolation to a boundary).
+                let (lo, hi) = (range[k].0[ch] as f64, range[k].1[ch] as f64);
+                let a_ch =
+                    ((c00 * r0 + c01 * r1 + c02 * r2) / det).clamp(lo - (hi - lo), hi + (hi - lo));
                 let g1 = (c01 * r0 + c11 * r1 + c12 * r2) / det;
                 let g2 = (c02 * r0 + c12 * r1 + c22 * r2) / det;
                 a[ch] = a_ch.max(0.0) as f32;

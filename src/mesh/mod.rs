@@ -17,6 +17,7 @@
 mod adaptive;
 mod contact;
 mod display;
+mod shadow;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
 pub use display::{
@@ -40,6 +41,9 @@ pub struct MeshSettings {
     /// Leave triangles whole where other surfaces touch or pierce them (no D0 splitting
     /// along contact lines; see `contact`). Off by default: for comparisons.
     pub no_contact_lines: bool,
+    /// Leave triangles whole where the hard shadows of point, spot and directional lights
+    /// and the sun fall (no splitting along shadow lines; see `shadow`).
+    pub no_shadow_lines: bool,
 }
 
 /// Default element budget: enough for visibly smooth Cornell-box lighting while keeping the
@@ -319,19 +323,59 @@ impl Mesh {
         // the pieces, so an element budget still holds; when even one element per piece
         // would exceed it, the triangles stay whole.
         let mut cut_edges: Vec<[Vec3; 2]> = Vec::new();
-        if !settings.no_contact_lines {
+        let lights: Vec<shadow::Punctual> = if settings.no_shadow_lines {
+            Vec::new()
+        } else {
+            punctual_lights(scene, origin)
+        };
+        if !settings.no_contact_lines || !lights.is_empty() {
             let mut receivers = vec![false; triangles.len()];
             for s in &sources {
                 receivers[s.scene_triangle as usize] = true;
             }
-            let contacts = contact::find_cuts(
-                &triangles,
-                &receivers,
-                scale * CONTACT_TOLERANCE,
-                (element_size * 0.5) as f32,
-            );
+            let tol = scale * CONTACT_TOLERANCE;
+            let min_len = (element_size * 0.5) as f32;
+            let contacts = if settings.no_contact_lines {
+                contact::Contacts {
+                    cuts: vec![Vec::new(); triangles.len()],
+                    covers: vec![Vec::new(); triangles.len()],
+                }
+            } else {
+                contact::find_cuts(&triangles, &receivers, tol, min_len)
+            };
+            let mut cuts = contacts.cuts.clone();
+            if !lights.is_empty() {
+                let bvh = crate::accel::Bvh::build(&triangles, &transmittance);
+                let shadows = shadow::shadow_cuts(
+                    &triangles,
+                    &transmittance,
+                    &receivers,
+                    &lights,
+                    &shadow::Lengths {
+                        scale,
+                        tol,
+                        min_len,
+                    },
+                    &bvh,
+                );
+                for (list, extra) in cuts.iter_mut().zip(shadows) {
+                    for s in extra {
+                        // Not again where a contact line runs (a box's foot casts
+                        // its shadow from there too).
+                        let d = |p: Vec3, q: Vec3| (p - q).length();
+                        let same = |o: &[Vec3; 2]| {
+                            (d(s[0], o[0]) <= tol && d(s[1], o[1]) <= tol)
+                                || (d(s[0], o[1]) <= tol && d(s[1], o[0]) <= tol)
+                        };
+                        if !list.iter().any(same) {
+                            list.push(s);
+                        }
+                    }
+                }
+            }
+            contact::carry_cut_ends(&triangles, &receivers, &mut cuts, tol as f64);
             let (mut pieces, edges, unsplit) =
-                split_sources(&sources, &contacts.cuts, element_size * PATCH_PER_ELEMENT);
+                split_sources(&sources, &cuts, element_size * PATCH_PER_ELEMENT);
             // Pieces lying under a face pressed against them (a box's bottom, a flush
             // lamp) are hidden: not drawn (they would z-fight with that face).
             let mut any_covered = false;
@@ -543,6 +587,32 @@ pub fn surface_values(
     let rho = sanitize(raw).min(Vec3::splat(0.999));
     let emission = sanitize(mat.emission * o.emission_tint(t)) * std::f32::consts::PI;
     (rho, emission, raw.max_element() > 0.999)
+}
+
+/// The scene's point, spot and directional lights and its sun, in the mesh frame (whose
+/// origin is `origin`).
+fn punctual_lights(scene: &Scene, origin: DVec3) -> Vec<shadow::Punctual> {
+    let mut out: Vec<shadow::Punctual> = scene
+        .lights
+        .iter()
+        .map(|l| match l {
+            crate::scene::Light::Point { position, .. }
+            | crate::scene::Light::Spot { position, .. } => {
+                shadow::Punctual::Point((*position - origin).as_vec3())
+            }
+            crate::scene::Light::Directional { direction, .. } => {
+                shadow::Punctual::Direction((-*direction).normalize_or_zero().as_vec3())
+            }
+        })
+        .collect();
+    if let Some((d, _)) = scene.environment.as_ref().and_then(|e| e.sun) {
+        out.push(shadow::Punctual::Direction(d.normalize_or_zero().as_vec3()));
+    }
+    out.retain(|l| match l {
+        shadow::Punctual::Point(p) => p.is_finite(),
+        shadow::Punctual::Direction(d) => d.is_finite() && *d != Vec3::ZERO,
+    });
+    out
 }
 
 /// Negative and non-finite channels become 0.
