@@ -396,3 +396,28 @@ fn shadow_lines_make_the_edge_exact_on_a_coarse_mesh() {
         }
     }
 }
+
+#[test]
+fn shadow_lines_mesh_the_same_every_time() {
+    // The silhouette edges come out of a hash map in a random order; the splitting must
+    // not depend on it (the triangulation follows the order of the cuts).
+    let meshes: Vec<_> = (0..4)
+        .map(|_| {
+            radiosity::mesh::Mesh::build(
+                &scene(Lamp::Point, HERE),
+                &MeshSettings {
+                    element_size: Some(0.25),
+                    ..Default::default()
+                },
+            )
+        })
+        .collect();
+    assert!(!meshes[0].cut_edges.is_empty());
+    for m in &meshes[1..] {
+        assert_eq!(m.cut_edges, meshes[0].cut_edges);
+        assert_eq!(m.patches.len(), meshes[0].patches.len());
+        for (p, q) in m.patches.iter().zip(&meshes[0].patches) {
+            assert_eq!(p.verts, q.verts);
+        }
+    }
+}

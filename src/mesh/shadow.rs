@@ -93,6 +93,15 @@ pub(super) fn shadow_cuts(
                 silhouettes.push((users[0].1, users[0].0));
             }
         }
+        // In a fixed order (the map's is random): the cuts' order decides the
+        // triangulation, and meshes must not change from run to run.
+        silhouettes.sort_by_key(|&([a, b], own)| {
+            (
+                own,
+                a.to_array().map(f32::to_bits),
+                b.to_array().map(f32::to_bits),
+            )
+        });
         let away = |p: Vec3| -towards(p).normalize_or_zero();
         let hits: Vec<Vec<([Vec3; 2], u32)>> = silhouettes
             .par_iter()
