@@ -22,10 +22,12 @@ impl Prepared {
     /// Meshes `scene` and builds its BVH.
     pub fn new(scene: &Scene, settings: &MeshSettings) -> Prepared {
         let t = Instant::now();
-        let mesh = Mesh::build(scene, settings);
+        // Meshing builds the BVH itself when it looks for shadow lines (its time is then
+        // in `mesh_seconds`).
+        let (mesh, bvh) = Mesh::build_keeping_bvh(scene, settings);
         let mesh_seconds = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let bvh = Bvh::build(&mesh.triangles, &mesh.transmittance);
+        let bvh = bvh.unwrap_or_else(|| Bvh::build(&mesh.triangles, &mesh.transmittance));
         let bvh_seconds = t.elapsed().as_secs_f64();
         Prepared {
             mesh: Arc::new(mesh),

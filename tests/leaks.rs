@@ -11,6 +11,8 @@
 //! splitting off) refines where the light's visibility disagrees at element corners, down
 //! to the minimum size, so points a couple of minimum sizes from the edge come out right.
 
+mod common;
+use common::{floor, quad};
 use glam::{DMat4, DVec3, Vec3};
 use radiosity::cli::probe_values;
 use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
@@ -22,31 +24,8 @@ use std::sync::atomic::AtomicBool;
 const RHO: f32 = 0.5;
 const HALF: f64 = 0.2; // block half-width, m
 
-fn quad(o: &mut Object, v: [[f32; 3]; 4], material: u32) {
-    let base = o.positions.len() as u32;
-    o.positions.extend(v.iter().map(|p| Vec3::from(*p)));
-    o.triangles.push([base, base + 1, base + 2]);
-    o.triangles.push([base, base + 2, base + 3]);
-    o.triangle_material.extend([material, material]);
-}
-
 fn scene() -> Scene {
-    let mut floor = Object {
-        name: "floor".into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    // Counter-clockwise seen from +y.
-    quad(
-        &mut floor,
-        [
-            [-1.0, 0.0, -1.0],
-            [-1.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [1.0, 0.0, -1.0],
-        ],
-        0,
-    );
+    let floor = floor(DMat4::IDENTITY);
     let mut block = Object {
         name: "block".into(),
         world_from_local: DMat4::IDENTITY,

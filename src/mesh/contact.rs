@@ -264,10 +264,7 @@ pub(super) fn find_cuts(
         }
     }
     let tol = tol as f64;
-    let same = |a: &[DVec3; 2], b: &[DVec3; 2]| {
-        ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
-            || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
-    };
+    let same = |a: &[DVec3; 2], b: &[DVec3; 2]| same_segment(*a, *b, tol);
     let cuts: Vec<Vec<[Vec3; 2]>> = found
         .into_iter()
         .map(|segments| {
@@ -297,6 +294,22 @@ pub(super) fn find_cuts(
     }
 }
 
+/// Whether two segments coincide (either way round) within `tol`.
+pub(super) fn same_segment(a: [DVec3; 2], b: [DVec3; 2], tol: f64) -> bool {
+    ((a[0] - b[0]).length() <= tol && (a[1] - b[1]).length() <= tol)
+        || ((a[0] - b[1]).length() <= tol && (a[1] - b[0]).length() <= tol)
+}
+
+/// Key of the edge (`a`, `b`) either way round: its end points' bits, so edges of an
+/// indexed mesh shared by two triangles get the same key.
+pub(super) fn edge_key(a: Vec3, b: Vec3) -> ([u32; 3], [u32; 3]) {
+    let (a, b) = (
+        a.to_array().map(f32::to_bits),
+        b.to_array().map(f32::to_bits),
+    );
+    if a <= b { (a, b) } else { (b, a) }
+}
+
 /// A cut that ends inside a triangle's edge puts a vertex there; the triangles sharing
 /// that edge get it too, as a zero-length cut (a point to split at), unless they have a
 /// cut end there already (the contact line goes on into them), so the mesh stays
@@ -310,13 +323,7 @@ pub(super) fn carry_cut_ends(
     tol: f64,
 ) {
     use std::collections::HashMap;
-    let key = |a: Vec3, b: Vec3| {
-        let (a, b) = (
-            a.to_array().map(f32::to_bits),
-            b.to_array().map(f32::to_bits),
-        );
-        if a <= b { (a, b) } else { (b, a) }
-    };
+    let key = edge_key;
     let mut edges: HashMap<_, Vec<u32>> = HashMap::new();
     for (i, t) in triangles.iter().enumerate() {
         if receivers[i] {

@@ -23,6 +23,7 @@ pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
 pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
 };
+pub(crate) use shadow::Punctual;
 
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
@@ -255,6 +256,15 @@ impl Mesh {
     /// Meshes `scene` with `settings`. Degenerate (zero-area or non-finite) triangles are
     /// kept out of the patches (with one warning) but stay in the BVH if finite.
     pub fn build(scene: &Scene, settings: &MeshSettings) -> Mesh {
+        Mesh::build_keeping_bvh(scene, settings).0
+    }
+
+    /// [`Mesh::build`], and the BVH of its scene triangles when meshing needed one (to
+    /// find shadow lines), so the caller need not build it again.
+    pub fn build_keeping_bvh(
+        scene: &Scene,
+        settings: &MeshSettings,
+    ) -> (Mesh, Option<crate::accel::Bvh>) {
         let (lo, hi) = scene.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
         let origin = (lo + hi) * 0.5;
         let scale = ((hi - lo).length() as f32).max(f32::MIN_POSITIVE);
@@ -323,10 +333,11 @@ impl Mesh {
         // the pieces, so an element budget still holds; when even one element per piece
         // would exceed it, the triangles stay whole.
         let mut cut_edges: Vec<[Vec3; 2]> = Vec::new();
-        let lights: Vec<shadow::Punctual> = if settings.no_shadow_lines {
+        let mut bvh = None;
+        let lights: Vec<Punctual> = if settings.no_shadow_lines {
             Vec::new()
         } else {
-            punctual_lights(scene, origin)
+            punctual_lights(&scene.lights, scene.environment.as_ref(), origin)
         };
         if !settings.no_contact_lines || !lights.is_empty() {
             let mut receivers = vec![false; triangles.len()];
@@ -345,7 +356,7 @@ impl Mesh {
             };
             let mut cuts = contacts.cuts.clone();
             if !lights.is_empty() {
-                let bvh = crate::accel::Bvh::build(&triangles, &transmittance);
+                let built = bvh.insert(crate::accel::Bvh::build(&triangles, &transmittance));
                 let shadows = shadow::shadow_cuts(
                     &triangles,
                     &transmittance,
@@ -356,16 +367,16 @@ impl Mesh {
                         tol,
                         min_len,
                     },
-                    &bvh,
+                    built,
                 );
                 for (list, extra) in cuts.iter_mut().zip(shadows) {
                     for s in extra {
-                        // Not again where a contact line runs (a box's foot casts
-                        // its shadow from there too).
-                        let d = |p: Vec3, q: Vec3| (p - q).length();
+                        // Once: not again where a contact line runs (a box's foot
+                        // casts its shadow from there too), nor where another
+                        // silhouette edge's shadow already did.
+                        let s2 = s.map(|p| p.as_dvec3());
                         let same = |o: &[Vec3; 2]| {
-                            (d(s[0], o[0]) <= tol && d(s[1], o[1]) <= tol)
-                                || (d(s[0], o[1]) <= tol && d(s[1], o[0]) <= tol)
+                            contact::same_segment(s2, o.map(|p| p.as_dvec3()), tol as f64)
                         };
                         if !list.iter().any(same) {
                             list.push(s);
@@ -441,7 +452,7 @@ impl Mesh {
         mesh.display =
             DisplayMesh::build(&mut mesh.elements, &mesh.patches, &mesh.cut_edges, scale);
         mesh.finish_triangle_ranges();
-        mesh
+        (mesh, bvh)
     }
 
     fn push_patch(&mut self, s: &Source, verts: [Vec3; 3], back: bool, depth: u32) {
@@ -589,28 +600,31 @@ pub fn surface_values(
     (rho, emission, raw.max_element() > 0.999)
 }
 
-/// The scene's point, spot and directional lights and its sun, in the mesh frame (whose
-/// origin is `origin`).
-fn punctual_lights(scene: &Scene, origin: DVec3) -> Vec<shadow::Punctual> {
-    let mut out: Vec<shadow::Punctual> = scene
-        .lights
+/// The point, spot and directional `lights` and the sun of `environment`, in the mesh
+/// frame (whose origin is `origin`); those with non-finite or zero data left out.
+pub(crate) fn punctual_lights(
+    lights: &[crate::scene::Light],
+    environment: Option<&crate::scene::Environment>,
+    origin: DVec3,
+) -> Vec<Punctual> {
+    let mut out: Vec<Punctual> = lights
         .iter()
         .map(|l| match l {
             crate::scene::Light::Point { position, .. }
             | crate::scene::Light::Spot { position, .. } => {
-                shadow::Punctual::Point((*position - origin).as_vec3())
+                Punctual::Point((*position - origin).as_vec3())
             }
             crate::scene::Light::Directional { direction, .. } => {
-                shadow::Punctual::Direction((-*direction).normalize_or_zero().as_vec3())
+                Punctual::Direction((-*direction).normalize_or_zero().as_vec3())
             }
         })
         .collect();
-    if let Some((d, _)) = scene.environment.as_ref().and_then(|e| e.sun) {
-        out.push(shadow::Punctual::Direction(d.normalize_or_zero().as_vec3()));
+    if let Some((d, _)) = environment.and_then(|e| e.sun) {
+        out.push(Punctual::Direction(d.normalize_or_zero().as_vec3()));
     }
     out.retain(|l| match l {
-        shadow::Punctual::Point(p) => p.is_finite(),
-        shadow::Punctual::Direction(d) => d.is_finite() && *d != Vec3::ZERO,
+        Punctual::Point(p) => p.is_finite(),
+        Punctual::Direction(d) => d.is_finite() && *d != Vec3::ZERO,
     });
     out
 }

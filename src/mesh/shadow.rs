@@ -11,17 +11,38 @@
 //! is itself in shadow) are dropped by testing the light's visibility on either side of
 //! the segment's midpoint.
 
+use super::contact::edge_key;
 use crate::accel::Bvh;
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 
 /// A light whose shadows have sharp edges, in the mesh frame.
 #[derive(Clone, Copy, Debug)]
-pub(super) enum Punctual {
+pub(crate) enum Punctual {
     /// A point (or spot) light here.
     Point(Vec3),
     /// A light at infinity in this direction (unit, towards the light).
     Direction(Vec3),
+}
+
+impl Punctual {
+    /// From `p` towards the light (not normalised).
+    pub(crate) fn towards(self, p: Vec3) -> Vec3 {
+        match self {
+            Punctual::Point(l) => l - p,
+            Punctual::Direction(d) => d,
+        }
+    }
+
+    /// Whether the light is seen from `x` (the rays skip the triangles `skip`); `far`: a
+    /// length beyond the scene, for lights at infinity.
+    pub(crate) fn visible(self, bvh: &Bvh, x: Vec3, skip: [u32; 2], far: f32) -> bool {
+        let target = match self {
+            Punctual::Point(l) => l,
+            Punctual::Direction(d) => x + d * far,
+        };
+        bvh.transmittance(x, target, skip) > 0.5
+    }
 }
 
 /// Lengths for [`shadow_cuts`]: the scene's diagonal, the contact tolerance, and the
@@ -34,7 +55,8 @@ pub(super) struct Lengths {
 }
 
 /// Shadow-line segments per triangle (for the `receivers`) cast by the opaque triangles
-/// (transmittance below one half) from `lights`.
+/// (transmittance below one half) from `lights`. Not deduplicated: the caller merges
+/// them with the contact lines, dropping segments that coincide.
 pub(super) fn shadow_cuts(
     triangles: &[[Vec3; 3]],
     transmittance: &[f32],
@@ -52,29 +74,22 @@ pub(super) fn shadow_cuts(
     let mut cuts: Vec<Vec<[Vec3; 2]>> = vec![Vec::new(); triangles.len()];
     let opaque = |i: usize| transmittance.get(i).is_none_or(|t| *t < 0.5);
     // Edges of opaque triangles, by bit-identical end points.
-    let key = |a: Vec3, b: Vec3| {
-        let (a, b) = (
-            a.to_array().map(f32::to_bits),
-            b.to_array().map(f32::to_bits),
-        );
-        if a <= b { (a, b) } else { (b, a) }
-    };
     let mut edges: HashMap<_, Vec<(u32, [Vec3; 2])>> = HashMap::new();
     for (i, t) in triangles.iter().enumerate() {
         if opaque(i) && t.iter().all(|p| p.is_finite()) {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                edges.entry(key(a, b)).or_default().push((i as u32, [a, b]));
+                edges
+                    .entry(edge_key(a, b))
+                    .or_default()
+                    .push((i as u32, [a, b]));
             }
         }
     }
     let eps = scale * 1e-5;
     let far = scale * 4.0;
     for light in lights {
-        let towards = |p: Vec3| match *light {
-            Punctual::Point(l) => l - p,
-            Punctual::Direction(d) => d,
-        };
+        let towards = |p: Vec3| light.towards(p);
         let facing = |i: u32| {
             let t = &triangles[i as usize];
             let nrm = (t[1] - t[0]).cross(t[2] - t[0]);
@@ -84,7 +99,6 @@ pub(super) fn shadow_cuts(
         // Silhouette edges: free edges, and edges between faces turned to and away from
         // the light. Each sweeps a quad (two triangles) away from the light; rays from
         // points along the edge, away from the light, find the receivers it lands on.
-        let mut tasks: Vec<([Vec3; 2], u32)> = Vec::new();
         let mut silhouettes: Vec<([Vec3; 2], u32)> = Vec::new();
         for users in edges.values() {
             let silhouette =
@@ -103,10 +117,10 @@ pub(super) fn shadow_cuts(
             )
         });
         let away = |p: Vec3| -towards(p).normalize_or_zero();
-        let hits: Vec<Vec<([Vec3; 2], u32)>> = silhouettes
+        let tasks: Vec<([Vec3; 2], u32)> = silhouettes
             .par_iter()
             .with_min_len(64)
-            .map(|&([a, b], own)| {
+            .flat_map_iter(|&([a, b], own)| {
                 let steps = (((b - a).length() / min_len).ceil() as usize).clamp(1, 256);
                 let mut seen: Vec<u32> = Vec::new();
                 for k in 0..steps {
@@ -119,14 +133,10 @@ pub(super) fn shadow_cuts(
                         seen.push(h.triangle);
                     }
                 }
-                seen.into_iter().map(|r| ([a, b], r)).collect()
+                seen.into_iter().map(move |r| ([a, b], r))
             })
             .collect();
-        tasks.extend(hits.into_iter().flatten());
-        let visible = |p: Vec3, own: u32| match *light {
-            Punctual::Point(l) => bvh.transmittance(p, l, [own, u32::MAX]) > 0.5,
-            Punctual::Direction(d) => bvh.transmittance(p, p + d * far, [own, u32::MAX]) > 0.5,
-        };
+        let visible = |p: Vec3, own: u32| light.visible(bvh, p, [own, u32::MAX], far);
         let found: Vec<(u32, [Vec3; 2])> = tasks
             .par_iter()
             .with_min_len(64)
@@ -147,23 +157,6 @@ pub(super) fn shadow_cuts(
         for (i, s) in found {
             cuts[i as usize].push(s);
         }
-    }
-    // Duplicates (the two triangles of a swept quad meet along a line, and adjacent
-    // silhouette edges give collinear pieces): keep one of segments that coincide.
-    let tol = tol as f64;
-    for list in cuts.iter_mut() {
-        let mut keep: Vec<[Vec3; 2]> = Vec::new();
-        for s in list.drain(..) {
-            let same = |o: &[Vec3; 2]| {
-                let d = |p: Vec3, q: Vec3| (p.as_dvec3() - q.as_dvec3()).length();
-                (d(s[0], o[0]) <= tol && d(s[1], o[1]) <= tol)
-                    || (d(s[0], o[1]) <= tol && d(s[1], o[0]) <= tol)
-            };
-            if !keep.iter().any(same) {
-                keep.push(s);
-            }
-        }
-        *list = keep;
     }
     cuts
 }

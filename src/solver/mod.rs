@@ -32,7 +32,7 @@ pub mod lighting;
 pub mod stochastic;
 
 use crate::accel::Bvh;
-use crate::mesh::{AdaptiveSettings, Mesh, Moved, sanitize};
+use crate::mesh::{AdaptiveSettings, Mesh, Moved, Punctual, sanitize};
 use form_factor::{FormFactorSettings, element_to_patch};
 use glam::{DVec3, Vec3};
 use lighting::ExternalLight;
@@ -627,9 +627,10 @@ impl Solver {
         order.sort_by(|&a, &b| power[b].total_cmp(&power[a]));
         for &p in order.iter().take(8) {
             let patch = &mesh.patches[p];
-            targets
-                .points
-                .push((patch.centroid() + patch.normal * eps, patch.scene_triangle));
+            targets.sources.push((
+                Punctual::Point(patch.centroid() + patch.normal * eps),
+                patch.scene_triangle,
+            ));
         }
         let extra = targets.changes(mesh, &self.bvh, |i| {
             marked[i] || crate::mesh::element_size(&mesh.elements[i]) * 0.5 < min_size * 0.999
@@ -1155,52 +1156,33 @@ impl Solver {
     }
 }
 
-/// Light sources for corner-visibility tests: points in the mesh frame (with the scene
-/// triangle a ray to it skips) and directions towards lights at infinity.
+/// Light sources for corner-visibility tests, in the mesh frame, each with the scene
+/// triangle a ray to it skips (`u32::MAX` for none).
 struct Targets {
-    points: Vec<(Vec3, u32)>,
-    directions: Vec<Vec3>,
+    sources: Vec<(Punctual, u32)>,
 }
 
 impl Targets {
     /// Point, spot and directional lights and the sun: the sources whose shadows are hard.
     fn punctual(mesh: &Mesh, external: &ExternalLight) -> Targets {
-        let mut t = Targets {
-            points: Vec::new(),
-            directions: Vec::new(),
-        };
-        for light in &external.lights {
-            match light {
-                crate::scene::Light::Point { position, .. }
-                | crate::scene::Light::Spot { position, .. } => {
-                    t.points.push((mesh.to_local(*position), u32::MAX))
-                }
-                crate::scene::Light::Directional { direction, .. } => t
-                    .directions
-                    .push((-direction.as_vec3()).normalize_or_zero()),
-            }
+        let lights = crate::mesh::punctual_lights(
+            &external.lights,
+            external.environment.as_ref(),
+            mesh.origin,
+        );
+        Targets {
+            sources: lights.into_iter().map(|l| (l, u32::MAX)).collect(),
         }
-        if let Some((d, _)) = external.environment.as_ref().and_then(|e| e.sun) {
-            t.directions.push(d.as_vec3().normalize_or_zero());
-        }
-        t
     }
 
     /// Which of the sources point `p` (normal `n`, on scene triangle `own`) sees: a bit
-    /// per source, points first (the first 64).
+    /// per source (the first 64).
     fn seen(&self, mesh: &Mesh, bvh: &Bvh, p: Vec3, n: Vec3, own: u32) -> u64 {
         let x = p + n * mesh.epsilon();
         let far = mesh.scale * 4.0;
-        let points = self
-            .points
+        self.sources
             .iter()
-            .map(|&(t, tri)| n.dot(t - p) > 0.0 && bvh.transmittance(x, t, [own, tri]) > 0.5);
-        let directions = self
-            .directions
-            .iter()
-            .map(|&d| n.dot(d) > 0.0 && bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5);
-        points
-            .chain(directions)
+            .map(|&(l, tri)| n.dot(l.towards(p)) > 0.0 && l.visible(bvh, x, [own, tri], far))
             .take(64)
             .enumerate()
             .fold(0, |m, (b, seen)| m | (u64::from(seen) << b))
@@ -1211,7 +1193,7 @@ impl Targets {
     /// towards the centroid (a corner exactly on a contact line is ambiguous) and lifted
     /// off the surface.
     fn changes(&self, mesh: &Mesh, bvh: &Bvh, skip: impl Fn(usize) -> bool + Sync) -> Vec<u32> {
-        if self.points.is_empty() && self.directions.is_empty() {
+        if self.sources.is_empty() {
             return Vec::new();
         }
         let eps = mesh.epsilon();
@@ -1227,23 +1209,13 @@ impl Targets {
                 let own = mesh.patches[e.patch as usize].scene_triangle;
                 let c = e.centroid();
                 let corners = e.verts.map(|v| v + (c - v) * 0.01 + e.normal * eps);
-                let disagree = |vis: [bool; 3]| vis[0] != vis[1] || vis[1] != vis[2];
-                let seen_points = self.points.iter().any(|&(t, tri)| {
-                    if e.normal.dot(t - c) <= 0.0 {
+                self.sources.iter().any(|&(l, tri)| {
+                    if e.normal.dot(l.towards(c)) <= 0.0 {
                         return false;
                     }
-                    disagree(corners.map(|x| bvh.transmittance(x, t, [own, tri]) > 0.5))
-                });
-                seen_points
-                    || self.directions.iter().any(|&d| {
-                        if e.normal.dot(d) <= 0.0 {
-                            return false;
-                        }
-                        disagree(
-                            corners
-                                .map(|x| bvh.transmittance(x, x + d * far, [own, u32::MAX]) > 0.5),
-                        )
-                    })
+                    let vis = corners.map(|x| l.visible(bvh, x, [own, tri], far));
+                    vis[0] != vis[1] || vis[1] != vis[2]
+                })
             })
             .map(|i| i as u32)
             .collect()
