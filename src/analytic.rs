@@ -109,7 +109,7 @@ pub fn penumbra_errors(
     mode: crate::mesh::Reconstruction,
 ) -> (f64, f64, usize) {
     let pts = penumbra_grid();
-    let got = crate::cli::probe_values(solver.mesh(), &solver.radiosity(), &pts, mode);
+    let got = crate::pipeline::probe_values(solver.mesh(), &solver.radiosity(), &pts, mode);
     let peak = pts
         .iter()
         .map(|(p, _)| penumbra_floor(p.x, p.z))

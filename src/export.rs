@@ -4,37 +4,8 @@
 
 use crate::mesh::Mesh;
 use crate::scene::Scene;
-use anyhow::{Context, Result};
 use glam::Vec3;
 use serde_json::json;
-use std::io::Write;
-use std::path::Path;
-
-/// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename, so a
-/// failure never leaves a partial file and never clobbers the old one half-way.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().context("output path has no file name")?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| -> Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("{}: cannot write", path.display()))
-}
 
 /// Builds the .glb bytes for `mesh` with per-vertex values `vertex_radiosity` (B, W/m²).
 pub fn baked_glb(scene: &Scene, mesh: &Mesh, vertex_radiosity: &[Vec3]) -> Vec<u8> {

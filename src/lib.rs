@@ -9,9 +9,13 @@ pub mod accel;
 pub mod analytic;
 pub mod cli;
 pub mod export;
+pub mod files;
+pub mod geometry;
+pub mod light;
 pub mod mesh;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;
+#[cfg(feature = "viewer")]
 pub mod view;
 pub mod worker;

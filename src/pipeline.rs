@@ -1,10 +1,11 @@
 //! Scene → mesh → BVH → solver, the sequence the command line and the viewer's worker share.
 
 use crate::accel::Bvh;
-use crate::mesh::{Mesh, MeshSettings};
+use crate::light::ExternalLight;
+use crate::mesh::{Mesh, MeshSettings, Reconstruction, Reconstructor};
 use crate::scene::Scene;
-use crate::solver::lighting::ExternalLight;
 use crate::solver::{Solver, SolverError, SolverSettings};
+use glam::{DVec3, Vec3};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -50,4 +51,22 @@ impl Prepared {
             settings,
         )
     }
+}
+
+/// Reconstructed radiosity at world points with outward normals (zero where no element
+/// faces that way).
+pub fn probe_values(
+    mesh: &Mesh,
+    radiosity: &[Vec3],
+    points: &[(DVec3, DVec3)],
+    mode: Reconstruction,
+) -> Vec<Vec3> {
+    let r = Reconstructor::new(mode, &mesh.display, &mesh.elements, radiosity);
+    points
+        .iter()
+        .map(|(p, n)| match mesh.locate(mesh.to_local(*p), n.as_vec3()) {
+            Some((e, bary)) => r.at(&mesh.elements, radiosity, e, bary),
+            None => Vec3::ZERO,
+        })
+        .collect()
 }

@@ -1,4 +1,4 @@
-//! The solver thread (DESIGN.md §2): the viewer sends commands, the worker loads, meshes,
+//! The solver thread (ARCHITECTURE.md, "Threads and messages"): the viewer sends commands, the worker loads, meshes,
 //! builds the BVH and steps the solver, and sends events back. Nothing here depends on a
 //! GUI: the UI passes a wake-up callback (`ctx.request_repaint()` in the app, a counter in
 //! tests) and drains the event channel without ever blocking on the solver.
@@ -10,11 +10,11 @@
 //! [`Event::Failed`]; the worker lives on and takes the next command.
 
 use crate::accel::Bvh;
-use crate::cli::open_scene;
+use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
-use crate::scene::{Material, Scene};
-use crate::solver::{PatchEdit, Solver, SolverSettings, Stats, StepOutcome};
+use crate::scene::{Material, OpenError, Scene};
+use crate::solver::{PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome};
 use glam::{DMat4, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
@@ -113,7 +113,7 @@ pub enum Event {
     /// An export finished: the path written, or why not.
     Exported {
         job: u64,
-        result: Result<PathBuf, String>,
+        result: Result<PathBuf, ExportError>,
     },
     Converged {
         job: u64,
@@ -121,8 +121,37 @@ pub enum Event {
     },
     Failed {
         job: u64,
-        error: String,
+        error: JobError,
     },
+}
+
+/// Why a job (or one command of it) failed. Cheap to clone, so events stay `Clone`; its
+/// `Display` is the one line the viewer shows.
+#[derive(Clone, Debug, thiserror::Error)]
+pub enum JobError {
+    /// The scene could not be opened (names the file and the problem).
+    #[error("{0}")]
+    Open(Arc<OpenError>),
+    /// The solver refused the settings (a method too large for the mesh) or failed.
+    #[error("{0}")]
+    Solver(Arc<SolverError>),
+    /// An edit named a material or object the scene does not have, or a degenerate
+    /// transform; the job goes on unchanged.
+    #[error("{0}")]
+    Edit(String),
+    /// A bug: a panic inside the job, caught so the worker lives on.
+    #[error("internal error in the solver: {0}")]
+    Internal(String),
+}
+
+/// Why an export did not happen.
+#[derive(Clone, Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The path is the scene file that is open.
+    #[error("{0}: will not overwrite the opened scene; choose another file")]
+    WouldOverwrite(String),
+    #[error("{0}")]
+    Write(Arc<WriteError>),
 }
 
 impl Event {
@@ -297,7 +326,7 @@ fn run(
                         Ok(Err(error)) => send(Event::Failed { job: id, error }),
                         Err(panic) => send(Event::Failed {
                             job: id,
-                            error: panic_message(&panic),
+                            error: JobError::Internal(panic_message(&panic)),
                         }),
                     }
                 }
@@ -351,7 +380,7 @@ fn run(
                             job = None;
                             send(Event::Failed {
                                 job: id,
-                                error: panic_message(&panic),
+                                error: JobError::Internal(panic_message(&panic)),
                             });
                         }
                     }
@@ -396,7 +425,7 @@ fn run(
                 j.done = true;
                 send(Event::Failed {
                     job: j.id,
-                    error: e.to_string(),
+                    error: JobError::Solver(Arc::new(e)),
                 });
             }
             Err(panic) => {
@@ -404,7 +433,7 @@ fn run(
                 job = None;
                 send(Event::Failed {
                     job: id,
-                    error: panic_message(&panic),
+                    error: JobError::Internal(panic_message(&panic)),
                 });
             }
         }
@@ -430,7 +459,7 @@ fn restart(j: &mut Job, settings: SolverSettings, send: &impl Fn(Event)) {
         }
         Err(e) => send(Event::Failed {
             job: j.id,
-            error: e.to_string(),
+            error: JobError::Solver(Arc::new(e)),
         }),
     }
 }
@@ -464,7 +493,7 @@ fn edit_material(
     let Some(m) = j.scene.materials.get_mut(material as usize) else {
         send(Event::Failed {
             job: j.id,
-            error: format!("no material {material} in the scene"),
+            error: JobError::Edit(format!("no material {material} in the scene")),
         });
         return;
     };
@@ -504,14 +533,14 @@ fn move_object(
     let Some(o) = j.scene.objects.get_mut(object as usize) else {
         send(Event::Failed {
             job: j.id,
-            error: format!("no object {object} in the scene"),
+            error: JobError::Edit(format!("no object {object} in the scene")),
         });
         return;
     };
     if !world_from_local.is_finite() || world_from_local.determinant().abs() < 1e-12 {
         send(Event::Failed {
             job: j.id,
-            error: "that transform is degenerate (zero scale or not finite)".into(),
+            error: JobError::Edit("that transform is degenerate (zero scale or not finite)".into()),
         });
         return;
     }
@@ -547,12 +576,12 @@ fn move_object(
         }
         Err(e) => send(Event::Failed {
             job: j.id,
-            error: e.to_string(),
+            error: JobError::Solver(Arc::new(e)),
         }),
     }
 }
 
-fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, String> {
+fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, ExportError> {
     if !j.source.0.starts_with("builtin:") {
         let opened = std::path::Path::new(&j.source.0);
         let same = match (opened.canonicalize(), path.canonicalize()) {
@@ -560,17 +589,14 @@ fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, String> {
             _ => opened == path,
         };
         if same {
-            return Err(format!(
-                "{}: will not overwrite the opened scene; choose another file",
-                path.display()
-            ));
+            return Err(ExportError::WouldOverwrite(path.display().to_string()));
         }
     }
     let radiosity = j.solver.radiosity();
     let mesh = j.solver.mesh();
     let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
     let bytes = crate::export::baked_glb(&j.scene, mesh, &vertex);
-    crate::export::write_atomic(path, &bytes).map_err(|e| format!("{e:#}"))?;
+    crate::files::write_atomic(path, &bytes).map_err(|e| ExportError::Write(Arc::new(e)))?;
     Ok(path.to_path_buf())
 }
 
@@ -602,12 +628,13 @@ fn load(
     auto_method: bool,
     cancel: &AtomicBool,
     send: &impl Fn(Event),
-) -> Result<Option<Job>, String> {
+) -> Result<Option<Job>, JobError> {
     send(Event::Progress {
         job: id,
         stage: Stage::Loading,
     });
-    let scene = open_scene(&source.0, None, None).map_err(|e| format!("{e:#}"))?;
+    let scene =
+        crate::scene::open(&source.0, None, None).map_err(|e| JobError::Open(Arc::new(e)))?;
     if cancel.load(Ordering::Relaxed) {
         return Ok(None);
     }
@@ -622,7 +649,9 @@ fn load(
     if auto_method && prepared.mesh.elements.len() > AUTO_STOCHASTIC_ELEMENTS {
         solver.method = crate::solver::Method::StochasticJacobi;
     }
-    let solver = prepared.solver(solver).map_err(|e| e.to_string())?;
+    let solver = prepared
+        .solver(solver)
+        .map_err(|e| JobError::Solver(Arc::new(e)))?;
     send(loaded_event(id, &scene, &prepared));
     send(Event::Progress {
         job: id,
@@ -646,10 +675,9 @@ fn load(
 }
 
 fn panic_message(panic: &Box<dyn std::any::Any + Send>) -> String {
-    let what = panic
+    panic
         .downcast_ref::<&str>()
         .map(|s| s.to_string())
         .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into());
-    format!("internal error in the solver: {what}")
+        .unwrap_or_else(|| "unknown panic".into())
 }

@@ -16,7 +16,8 @@
 
 use glam::{DVec3, Vec3};
 use radiosity::accel::Bvh;
-use radiosity::mesh::{Mesh, MeshSettings, subdivide};
+use radiosity::geometry::subdivide;
+use radiosity::mesh::{Mesh, MeshSettings};
 use radiosity::pipeline::Prepared;
 use radiosity::scene::{Material, Object, Scene, builtin};
 use radiosity::solver::form_factor::{FormFactorSettings, element_to_patch, point_to_polygon};

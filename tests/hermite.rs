@@ -6,11 +6,11 @@
 
 use glam::{DVec3, Vec3};
 use radiosity::analytic::penumbra_errors;
-use radiosity::cli::probe_values;
 use radiosity::mesh::{
     AdaptiveSettings, DisplayMesh, Mesh, MeshSettings, Reconstruction, Reconstructor, eval_bezier,
 };
 use radiosity::pipeline::Prepared;
+use radiosity::pipeline::probe_values;
 use radiosity::scene::builtin;
 use radiosity::solver::{Method, Solver, SolverSettings};
 use std::sync::atomic::AtomicBool;
@@ -74,7 +74,7 @@ fn hermite_interpolates_vertex_values_and_is_continuous_across_edges() {
                     if j == i || f.normal.dot(e.normal) < 0.99 {
                         continue;
                     }
-                    let (q, fb) = radiosity::mesh::closest_point_on_triangle(p, &f.verts);
+                    let (q, fb) = radiosity::geometry::closest_point_on_triangle(p, &f.verts);
                     if (q - p).length() > 1e-6 {
                         continue;
                     }
@@ -177,7 +177,7 @@ fn cross_edge_jump(mode: Reconstruction, mesh: &Mesh, b: &[Vec3]) -> f64 {
         }
     }
     let value = |i: usize, p: Vec3| -> f64 {
-        let (_, bary) = radiosity::mesh::closest_point_on_triangle(p, &mesh.elements[i].verts);
+        let (_, bary) = radiosity::geometry::closest_point_on_triangle(p, &mesh.elements[i].verts);
         r.at(&mesh.elements, b, i as u32, bary).x as f64
     };
     let (mut worst, mut grad_sum, mut n) = (0.0f64, 0.0f64, 0usize);

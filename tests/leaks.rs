@@ -14,9 +14,9 @@
 mod common;
 use common::{floor, quad};
 use glam::{DMat4, DVec3, Vec3};
-use radiosity::cli::probe_values;
 use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
+use radiosity::pipeline::probe_values;
 use radiosity::scene::{Light, Material, Object, Scene};
 use radiosity::solver::{SolverSettings, StepOutcome};
 use std::sync::atomic::AtomicBool;
@@ -96,10 +96,10 @@ fn errors(run: Run) -> (f64, f64, usize) {
         &scene,
         &MeshSettings {
             element_size: Some(0.25),
-            no_contact_lines: !run.contact_lines,
+            contact_lines: run.contact_lines,
             // The block's shadow in this vertical sun is its footprint: splitting along
             // shadow lines would split there too. Contact lines are tested alone.
-            no_shadow_lines: true,
+            shadow_lines: false,
             ..Default::default()
         },
     );

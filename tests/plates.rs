@@ -17,9 +17,9 @@
 //! brute-force quadrature as well.
 
 use glam::{DMat4, DVec3, Vec3};
-use radiosity::cli::probe_values;
 use radiosity::mesh::{MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
+use radiosity::pipeline::probe_values;
 use radiosity::scene::{Material, Object, Scene};
 use radiosity::solver::{Method, SolverSettings};
 use std::f64::consts::PI;

@@ -19,9 +19,9 @@
 mod common;
 use common::{floor, quad};
 use glam::{DMat4, DVec2, DVec3, Vec3};
-use radiosity::cli::probe_values;
 use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
+use radiosity::pipeline::probe_values;
 use radiosity::scene::{Light, Material, Object, Scene};
 use radiosity::solver::{SolverSettings, StepOutcome};
 use std::sync::atomic::AtomicBool;
@@ -177,7 +177,7 @@ fn solve_and_probe(
         &scene,
         &MeshSettings {
             element_size: Some(0.25 * place.scale),
-            no_shadow_lines: remedy == Remedy::Refinement,
+            shadow_lines: remedy != Remedy::Refinement,
             ..Default::default()
         },
     );

@@ -13,6 +13,9 @@
 
 mod bvh;
 
+use crate::geometry::sampling::{hash, point_in_triangle, unit};
+use crate::geometry::triangle_area;
+
 pub use bvh::{Bvh, Hit};
 
 /// `n` segments between pairs of points drawn uniformly by area over `triangles` (a fixed
@@ -21,11 +24,10 @@ pub use bvh::{Bvh, Hit};
 ///
 /// This is the distribution of `radiosity bench --occlusion`.
 pub fn sample_segments(triangles: &[[glam::Vec3; 3]], n: usize) -> Option<Vec<Segment>> {
-    use crate::solver::form_factor::{hash, unit};
     let mut cdf = Vec::with_capacity(triangles.len());
     let mut total = 0.0f64;
     for t in triangles {
-        let a = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64;
+        let a = triangle_area(t) as f64;
         total += if a.is_finite() { a } else { 0.0 };
         cdf.push(total);
     }
@@ -37,12 +39,8 @@ pub fn sample_segments(triangles: &[[glam::Vec3; 3]], n: usize) -> Option<Vec<Se
         let x = unit(h) as f64 * total;
         let i = cdf.partition_point(|c| *c < x).min(cdf.len() - 1);
         let t = &triangles[i];
-        let (mut u, mut v) = (unit(hash(h ^ 1)), unit(hash(h ^ 2)));
-        if u + v > 1.0 {
-            u = 1.0 - u;
-            v = 1.0 - v;
-        }
-        (t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * v, i as u32)
+        let p = point_in_triangle(t, unit(hash(h ^ 1)), unit(hash(h ^ 2)));
+        (p, i as u32)
     };
     Some(
         (0..n as u64)

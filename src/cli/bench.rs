@@ -1,10 +1,12 @@
 //! `radiosity bench`: error against a reference over time for each method
 //! (convergence.csv, convergence.png), and occlusion-ray throughput (`--occlusion`).
 
-use super::{SolveOptions, prepare, probe_values, read_table};
-use crate::export::write_atomic;
+use super::csv::read_table;
+use super::{SolveOptions, prepare};
+use crate::files::write_atomic;
 use crate::mesh::Reconstruction;
 use crate::pipeline::Prepared;
+use crate::pipeline::probe_values;
 use crate::scene::Scene;
 use crate::solver::{MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, SolverSettings, StepOutcome};
 use anyhow::{Context, Result};

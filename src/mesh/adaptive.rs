@@ -14,7 +14,8 @@
 //! [`Mesh::refine`] rewrites the element array (each patch's leaves stay contiguous) and
 //! returns where every old element went, so a solver can carry its per-element state over.
 
-use super::{Element, Mesh, subdivide};
+use super::{Element, Mesh};
+use crate::geometry::{subdivide, triangle_cross};
 use glam::Vec3;
 
 /// Refinement parameters.
@@ -190,7 +191,7 @@ impl Mesh {
                             children: None,
                             element: Some(index),
                         });
-                        let nrm = (v[1] - v[0]).cross(v[2] - v[0]);
+                        let nrm = triangle_cross(&v);
                         elements.push(Element {
                             verts: v,
                             normal: parent.normal,

@@ -18,6 +18,7 @@
 //! on a contact segment across regions, so Gouraud and Hermite shading jump there instead
 //! of smearing the dark underside into the lit floor.
 
+use crate::geometry::{dtriangle_cross, triangle_cross};
 use glam::{DVec2, DVec3, Vec3};
 use spade::{
     AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation,
@@ -106,9 +107,9 @@ pub(super) fn contact(r: &[Vec3; 3], t: &[Vec3; 3], tol: f64, min_len: f64) -> C
     };
     let r = r.map(|v| v.as_dvec3());
     let t = t.map(|v| v.as_dvec3());
-    let n = (r[1] - r[0]).cross(r[2] - r[0]);
+    let n = dtriangle_cross(&r);
     let len = n.length();
-    let m = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+    let m = dtriangle_cross(&t).normalize_or_zero();
     if len <= 0.0 || !len.is_finite() || m == DVec3::ZERO {
         return none;
     }
@@ -220,7 +221,7 @@ pub(super) fn is_covered(p: Vec3, covers: &[u32], triangles: &[[Vec3; 3]]) -> bo
     covers.iter().any(|&j| {
         let t = triangles[j as usize].map(|v| v.as_dvec3());
         let p = p.as_dvec3();
-        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let n = dtriangle_cross(&t);
         let nn = n.length_squared();
         if nn <= 0.0 {
             return false;
@@ -398,7 +399,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
     };
     let v = verts.map(|p| p.as_dvec3());
     // A 2D frame in the triangle's plane: origin v0, axes u (along v0→v1) and w.
-    let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+    let n = dtriangle_cross(&v).normalize_or_zero();
     let u = (v[1] - v[0]).normalize_or_zero();
     let w = n.cross(u);
     let to2 = |p: DVec3| {
@@ -566,7 +567,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
             let mut t = p.map(to3);
             // spade's faces are counter-clockwise in (u, w), which is the triangle's own
             // orientation (n = u × w); keep it.
-            let nn = (t[1] - t[0]).cross(t[2] - t[0]);
+            let nn = triangle_cross(&t);
             if nn.dot(n.as_vec3()) < 0.0 {
                 t.swap(1, 2);
             }
@@ -593,6 +594,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::triangle_area;
 
     #[test]
     fn a_box_on_a_floor_cuts_its_footprint() {
@@ -653,12 +655,12 @@ mod tests {
         ];
         let cuts: Vec<[Vec3; 2]> = (0..4).map(|k| [q[k], q[(k + 1) % 4]]).collect();
         let pieces = split(t, &cuts, 0.5).expect("split");
-        let n = (t[1] - t[0]).cross(t[2] - t[0]);
-        let area = |v: &[Vec3; 3]| 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length() as f64;
+        let n = triangle_cross(&t);
+        let area = |v: &[Vec3; 3]| triangle_area(v) as f64;
         let total: f64 = pieces.iter().map(|p| area(&p.verts)).sum();
         assert!((total - area(&t)).abs() < 1e-6, "{total}");
         for p in &pieces {
-            let m = (p.verts[1] - p.verts[0]).cross(p.verts[2] - p.verts[0]);
+            let m = triangle_cross(&p.verts);
             assert!(m.dot(n) > 0.0, "orientation kept");
         }
         // Two regions: inside the square (area 0.16) and outside.

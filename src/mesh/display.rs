@@ -7,6 +7,7 @@
 //! a smooth surface but never across a crease or a material boundary.
 
 use super::{Element, Patch};
+use crate::geometry::orthonormal_basis;
 use glam::Vec3;
 use std::collections::HashMap;
 
@@ -338,11 +339,7 @@ impl DisplayMesh {
         // area-weighted mean and no slope.
         let mut m = vec![[0.0f64; 6]; nv]; // s00 s01 s02 s11 s12 s22
         let mut r = vec![[[0.0f64; 3]; 3]; nv];
-        let basis: Vec<(Vec3, Vec3)> = self
-            .normals
-            .iter()
-            .map(|n| crate::solver::lighting::orthonormal_basis(*n))
-            .collect();
+        let basis: Vec<(Vec3, Vec3)> = self.normals.iter().map(|n| orthonormal_basis(*n)).collect();
         for (i, (e, v)) in elements.iter().zip(values).enumerate() {
             let c = e.centroid();
             for &k in &e.corners {

@@ -17,14 +17,19 @@
 mod adaptive;
 mod contact;
 mod display;
+mod hard_shadows;
 mod shadow;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
 pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
 };
-pub(crate) use shadow::Punctual;
+pub use hard_shadows::LightTargets;
 
+use crate::geometry::{
+    Frame, closest_point_on_triangle, subdivide, triangle_area as area, triangle_cross,
+};
+use crate::light::{Punctual, punctual_lights};
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use std::ops::Range;
@@ -32,19 +37,30 @@ use std::ops::Range;
 /// How finely to mesh. `element_size` wins over `max_elements`; with neither, the element
 /// size is chosen so that the mesh has at most [`DEFAULT_ELEMENTS`] elements, or 1.5 per
 /// triangle side for scenes with more triangles than that.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MeshSettings {
     /// Target element size in metres: an element's `sqrt(2·area)` (the leg of a right
     /// isosceles triangle of the same area) is at most this.
     pub element_size: Option<f64>,
     /// Upper bound on the number of elements when `element_size` is not given.
     pub max_elements: Option<usize>,
-    /// Leave triangles whole where other surfaces touch or pierce them (no D0 splitting
-    /// along contact lines; see `contact`). Off by default: for comparisons.
-    pub no_contact_lines: bool,
-    /// Leave triangles whole where the hard shadows of point, spot and directional lights
-    /// and the sun fall (no splitting along shadow lines; see `shadow`).
-    pub no_shadow_lines: bool,
+    /// Split triangles where other surfaces touch or pierce them (D0 discontinuity
+    /// meshing along contact lines; see `contact`). On by default; off for comparisons.
+    pub contact_lines: bool,
+    /// Split triangles where the hard shadows of point, spot and directional lights and
+    /// the sun fall (shadow lines; see `shadow`). On by default.
+    pub shadow_lines: bool,
+}
+
+impl Default for MeshSettings {
+    fn default() -> Self {
+        MeshSettings {
+            element_size: None,
+            max_elements: None,
+            contact_lines: true,
+            shadow_lines: true,
+        }
+    }
 }
 
 /// Default element budget: enough for visibly smooth Cornell-box lighting while keeping the
@@ -180,10 +196,6 @@ struct Source {
     double_sided: bool,
 }
 
-fn area(v: &[Vec3; 3]) -> f32 {
-    0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length()
-}
-
 fn longest_edge(v: &[Vec3; 3]) -> (usize, f32) {
     let e = [
         (v[1] - v[0]).length_squared(),
@@ -242,14 +254,6 @@ fn count_elements(sources: &[Source], size: f64) -> usize {
         }
     }
     total
-}
-
-/// Midpoint subdivision children of a triangle, same orientation.
-pub fn subdivide(v: &[Vec3; 3]) -> [[Vec3; 3]; 4] {
-    let ab = (v[0] + v[1]) * 0.5;
-    let bc = (v[1] + v[2]) * 0.5;
-    let ca = (v[2] + v[0]) * 0.5;
-    [[v[0], ab, ca], [ab, v[1], bc], [ca, bc, v[2]], [ab, bc, ca]]
 }
 
 impl Mesh {
@@ -334,25 +338,25 @@ impl Mesh {
         // would exceed it, the triangles stay whole.
         let mut cut_edges: Vec<[Vec3; 2]> = Vec::new();
         let mut bvh = None;
-        let lights: Vec<Punctual> = if settings.no_shadow_lines {
-            Vec::new()
-        } else {
+        let lights: Vec<Punctual> = if settings.shadow_lines {
             punctual_lights(&scene.lights, scene.environment.as_ref(), origin)
+        } else {
+            Vec::new()
         };
-        if !settings.no_contact_lines || !lights.is_empty() {
+        if settings.contact_lines || !lights.is_empty() {
             let mut receivers = vec![false; triangles.len()];
             for s in &sources {
                 receivers[s.scene_triangle as usize] = true;
             }
             let tol = scale * CONTACT_TOLERANCE;
             let min_len = (element_size * 0.5) as f32;
-            let contacts = if settings.no_contact_lines {
+            let contacts = if settings.contact_lines {
+                contact::find_cuts(&triangles, &receivers, tol, min_len)
+            } else {
                 contact::Contacts {
                     cuts: vec![Vec::new(); triangles.len()],
                     covers: vec![Vec::new(); triangles.len()],
                 }
-            } else {
-                contact::find_cuts(&triangles, &receivers, tol, min_len)
             };
             let mut cuts = contacts.cuts.clone();
             if !lights.is_empty() {
@@ -456,7 +460,7 @@ impl Mesh {
     }
 
     fn push_patch(&mut self, s: &Source, verts: [Vec3; 3], back: bool, depth: u32) {
-        let n = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+        let n = triangle_cross(&verts);
         let first = self.elements.len() as u32;
         let patch = self.patches.len() as u32;
         let root = self.push_node(verts, depth, patch, 0);
@@ -487,7 +491,7 @@ impl Mesh {
             element: None,
         });
         if depth == 0 {
-            let n = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+            let n = triangle_cross(&verts);
             self.nodes[index as usize].element = Some(self.elements.len() as u32);
             self.elements.push(Element {
                 verts,
@@ -550,9 +554,17 @@ impl Mesh {
         node.element
     }
 
+    /// The frame the mesh's f32 positions are stored in.
+    pub fn frame(&self) -> Frame {
+        Frame {
+            origin: self.origin,
+            scale: self.scale,
+        }
+    }
+
     /// Converts a world-space point to the mesh frame.
     pub fn to_local(&self, world: DVec3) -> Vec3 {
-        (world - self.origin).as_vec3()
+        self.frame().to_local(world)
     }
 
     /// Total area of all patches (both sides of double-sided surfaces counted), m².
@@ -560,11 +572,9 @@ impl Mesh {
         self.patches.iter().map(|p| p.area as f64).sum()
     }
 
-    /// Offset used to lift ray endpoints off surfaces: a millionth of the scene size, but at
-    /// least a few f32 ulps of the coordinates involved (the mesh frame is centred, so
-    /// coordinates are at most `scale`).
+    /// Offset used to lift ray endpoints off surfaces ([`Frame::epsilon`]).
     pub fn epsilon(&self) -> f32 {
-        self.scale * 1e-5
+        self.frame().epsilon()
     }
 
     /// The element whose surface point is nearest to `p` (mesh frame) among elements facing
@@ -598,35 +608,6 @@ pub fn surface_values(
     let rho = sanitize(raw).min(Vec3::splat(0.999));
     let emission = sanitize(mat.emission * o.emission_tint(t)) * std::f32::consts::PI;
     (rho, emission, raw.max_element() > 0.999)
-}
-
-/// The point, spot and directional `lights` and the sun of `environment`, in the mesh
-/// frame (whose origin is `origin`); those with non-finite or zero data left out.
-pub(crate) fn punctual_lights(
-    lights: &[crate::scene::Light],
-    environment: Option<&crate::scene::Environment>,
-    origin: DVec3,
-) -> Vec<Punctual> {
-    let mut out: Vec<Punctual> = lights
-        .iter()
-        .map(|l| match l {
-            crate::scene::Light::Point { position, .. }
-            | crate::scene::Light::Spot { position, .. } => {
-                Punctual::Point((*position - origin).as_vec3())
-            }
-            crate::scene::Light::Directional { direction, .. } => {
-                Punctual::Direction((-*direction).normalize_or_zero().as_vec3())
-            }
-        })
-        .collect();
-    if let Some((d, _)) = environment.and_then(|e| e.sun) {
-        out.push(Punctual::Direction(d.normalize_or_zero().as_vec3()));
-    }
-    out.retain(|l| match l {
-        Punctual::Point(p) => p.is_finite(),
-        Punctual::Direction(d) => d.is_finite() && *d != Vec3::ZERO,
-    });
-    out
 }
 
 /// Negative and non-finite channels become 0.
@@ -765,51 +746,6 @@ fn choose_element_size(
         }
     }
     hi
-}
-
-/// Closest point on triangle `t` to `p` (Ericson, Real-Time Collision Detection, §5.1.5),
-/// with its barycentric coordinates.
-pub fn closest_point_on_triangle(p: Vec3, t: &[Vec3; 3]) -> (Vec3, [f32; 3]) {
-    let (a, b, c) = (t[0], t[1], t[2]);
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, [1.0, 0.0, 0.0]);
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return (b, [0.0, 1.0, 0.0]);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + ab * v, [1.0 - v, v, 0.0]);
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return (c, [0.0, 0.0, 1.0]);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + ac * w, [1.0 - w, 0.0, w]);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, [0.0, 1.0 - w, w]);
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    (a + ab * v + ac * w, [1.0 - v - w, v, w])
 }
 
 #[cfg(test)]

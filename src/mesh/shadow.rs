@@ -13,37 +13,10 @@
 
 use super::contact::edge_key;
 use crate::accel::Bvh;
+use crate::geometry::{dtriangle_cross, triangle_cross, triangle_normal};
+use crate::light::Punctual;
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
-
-/// A light whose shadows have sharp edges, in the mesh frame.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum Punctual {
-    /// A point (or spot) light here.
-    Point(Vec3),
-    /// A light at infinity in this direction (unit, towards the light).
-    Direction(Vec3),
-}
-
-impl Punctual {
-    /// From `p` towards the light (not normalised).
-    pub(crate) fn towards(self, p: Vec3) -> Vec3 {
-        match self {
-            Punctual::Point(l) => l - p,
-            Punctual::Direction(d) => d,
-        }
-    }
-
-    /// Whether the light is seen from `x` (the rays skip the triangles `skip`); `far`: a
-    /// length beyond the scene, for lights at infinity.
-    pub(crate) fn visible(self, bvh: &Bvh, x: Vec3, skip: [u32; 2], far: f32) -> bool {
-        let target = match self {
-            Punctual::Point(l) => l,
-            Punctual::Direction(d) => x + d * far,
-        };
-        bvh.transmittance(x, target, skip) > 0.5
-    }
-}
 
 /// Lengths for [`shadow_cuts`]: the scene's diagonal, the contact tolerance, and the
 /// shortest shadow segment split along (shorter ones are left to refinement).
@@ -92,7 +65,7 @@ pub(super) fn shadow_cuts(
         let towards = |p: Vec3| light.towards(p);
         let facing = |i: u32| {
             let t = &triangles[i as usize];
-            let nrm = (t[1] - t[0]).cross(t[2] - t[0]);
+            let nrm = triangle_cross(&t);
             let c = (t[0] + t[1] + t[2]) / 3.0;
             nrm.dot(towards(c)) > 0.0
         };
@@ -142,7 +115,7 @@ pub(super) fn shadow_cuts(
             .with_min_len(64)
             .filter_map(|&(edge, i)| {
                 let r = &triangles[i as usize];
-                let nrm = (r[1] - r[0]).cross(r[2] - r[0]).normalize_or_zero();
+                let nrm = triangle_normal(&r);
                 let [a, b] = project(r, edge, *light, tol, min_len)?;
                 let m = (a + b) * 0.5;
                 if nrm.dot(towards(m)) <= 0.0 {
@@ -173,7 +146,7 @@ fn project(
     min_len: f32,
 ) -> Option<[Vec3; 2]> {
     let v = r.map(|p| p.as_dvec3());
-    let n = (v[1] - v[0]).cross(v[2] - v[0]);
+    let n = dtriangle_cross(&v);
     let len = n.length();
     if len <= 0.0 || !len.is_finite() {
         return None;

@@ -8,6 +8,9 @@
 
 pub mod builtin;
 pub mod gltf;
+mod open;
+
+pub use open::{OpenError, open};
 
 use glam::{DMat4, DVec3, Vec3};
 

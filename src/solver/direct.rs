@@ -1,7 +1,10 @@
 //! Dense direct solve: LU factorisation with partial pivoting (Golub & Van Loan, "Matrix
 //! Computations", Alg. 3.4.1), in f64. Used as the exact discrete reference; O(n³).
 
+use super::{Phase, Solver, SolverError};
+use glam::DVec3;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Solves `a · x = b` for a dense row-major `n × n` matrix `a` (consumed). Returns `None`
 /// if the matrix is singular to working precision.
@@ -50,12 +53,55 @@ pub fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Option<Vec<f64
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
+impl Solver {
+    pub(super) fn direct_solve(&mut self) -> Result<(), SolverError> {
+        let m = self.mesh.patches.len();
+        let mesh = Arc::clone(&self.mesh);
+        let source_means = self.patch_means(&self.source);
+        let mut means = vec![DVec3::ZERO; m];
+        for c in 0..3 {
+            // Reduced system: (I − P ρ F) B̄ = P E'.
+            let mut a = vec![0.0f64; m * m];
+            for q in 0..m {
+                a[q * m + q] = 1.0;
+            }
+            for (q, patch) in mesh.patches.iter().enumerate() {
+                for i in patch.elements.clone() {
+                    let i = i as usize;
+                    let w =
+                        (mesh.elements[i].area / patch.area) as f64 * self.reflectance[i][c] as f64;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    for &(p, f) in self.rows[i].iter() {
+                        a[q * m + p as usize] -= w * f as f64;
+                    }
+                }
+            }
+            let b: Vec<f64> = source_means.iter().map(|s| s[c]).collect();
+            let x = solve_dense(a, b, m).ok_or(SolverError::Singular)?;
+            for (mean, v) in means.iter_mut().zip(x) {
+                mean[c] = v;
+            }
+        }
+        self.radiosity = (0..self.radiosity.len())
+            .into_par_iter()
+            .map(|i| self.gather(i, &means))
+            .collect();
+        self.stats.iterations = 1;
+        self.stats.residual = Some(0.0);
+        self.stats.energy_balance = Some(self.gathered_balance());
+        self.phase = Phase::Done;
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn solves_a_system_needing_pivoting() {
+    pub(super) fn solves_a_system_needing_pivoting() {
         // [[0, 2, 1], [1, 1, 1], [2, 1, 0]] x = [5, 4, 4] has x = (1, 2, 1): 0+4+1, 1+2+1, 2+2+0.
         let a = vec![0.0, 2.0, 1.0, 1.0, 1.0, 1.0, 2.0, 1.0, 0.0];
         let x = solve_dense(a, vec![5.0, 4.0, 4.0], 3).unwrap();

@@ -28,6 +28,7 @@
 //! collocation-accurate (the mesh must be fine there).
 
 use crate::accel::Bvh;
+use crate::geometry::sampling::{hash, stratified_point, stratum};
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 
@@ -144,8 +145,6 @@ pub fn disk_approximation(p: Vec3, n: Vec3, q: Vec3, nq: Vec3, area: f32) -> f32
     (cos_i * cos_j * area / (std::f32::consts::PI * r2 + area)).min(1.0)
 }
 
-/// A small deterministic hash (SplitMix64 finaliser, Steele et al. 2014) so that sample
-/// positions depend only on the pair being sampled, never on thread scheduling.
 /// A seed for an element's random numbers from its geometry, not its index: an element
 /// kept through an adaptive refinement (which renumbers elements) draws the same rays.
 pub fn element_seed(e: &crate::mesh::Element) -> u64 {
@@ -156,55 +155,6 @@ pub fn element_seed(e: &crate::mesh::Element) -> u64 {
         }
     }
     h
-}
-
-pub fn hash(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-/// Uniform number in [0, 1) from a hash.
-pub fn unit(h: u64) -> f32 {
-    (h >> 40) as f32 / (1u64 << 24) as f32
-}
-
-/// Sub-triangle `s` of the `k²` congruent sub-triangles that cut triangle `t` (rows of
-/// 1, 3, 5, … triangles, upright and inverted alternating). Together they tile `t`.
-pub fn stratum(t: &[Vec3; 3], k: u32, s: u32) -> [Vec3; 3] {
-    // Sub-triangle s in row r: rows have 2r+1 triangles (upright at even offsets).
-    let r = (s as f32).sqrt() as u32;
-    let r = if (r + 1) * (r + 1) <= s { r + 1 } else { r };
-    let r = if r * r > s { r - 1 } else { r };
-    let o = s - r * r;
-    let (i, upright) = (o / 2, o.is_multiple_of(2));
-    let kf = k as f32;
-    let e1 = (t[1] - t[0]) / kf;
-    let e2 = (t[2] - t[0]) / kf;
-    // Barycentric lattice: a steps along e1, b along e2; row r has b = k − 1 − r.
-    let a = i as f32;
-    let b = (k - 1 - r) as f32;
-    if upright {
-        let p0 = t[0] + e1 * a + e2 * b;
-        [p0, p0 + e1, p0 + e2]
-    } else {
-        let p0 = t[0] + e1 * (a + 1.0) + e2 * (b + 1.0);
-        [p0, p0 - e1, p0 - e2]
-    }
-}
-
-/// Point `s` of `k²` stratified, jittered points on triangle `t`: the triangle is cut into
-/// `k²` congruent sub-triangles ([`stratum`]) and one uniform point is drawn in each.
-pub fn stratified_point(t: &[Vec3; 3], k: u32, s: u32, seed: u64) -> Vec3 {
-    let [p0, p1, p2] = stratum(t, k, s);
-    let h = hash(seed ^ (s as u64).wrapping_mul(0x2545_F491_4F6C_DD1D));
-    let (mut x, mut y) = (unit(h), unit(hash(h)));
-    if x + y > 1.0 {
-        x = 1.0 - x;
-        y = 1.0 - y;
-    }
-    p0 + (p1 - p0) * x + (p2 - p0) * y
 }
 
 /// Visibility-weighted form factor from element `element` (receiver, at its centroid) to
@@ -292,60 +242,3 @@ pub fn element_to_patch(
 
 /// The most strata [`element_to_patch`] samples (`max_rays` is capped to this).
 pub const MAX_SAMPLES: usize = 256;
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn strata_tile_the_triangle() {
-        // The k² strata have equal area summing to the triangle's and their centroids
-        // average to its centroid (a tiling by congruent pieces does both; a gap or overlap
-        // would break the area sum).
-        let t = [
-            Vec3::new(0.3, -1.0, 2.0),
-            Vec3::new(4.0, 0.5, 1.0),
-            Vec3::new(-1.0, 3.0, 0.0),
-        ];
-        let area = |t: &[Vec3; 3]| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
-        for k in 1..=16u32 {
-            let mut sum = 0.0;
-            let mut c = Vec3::ZERO;
-            for s in 0..k * k {
-                let st = stratum(&t, k, s);
-                let a = area(&st);
-                assert!(
-                    (a - area(&t) / (k * k) as f32).abs() < 1e-4 * area(&t),
-                    "k {k} s {s}"
-                );
-                sum += a;
-                c += (st[0] + st[1] + st[2]) / 3.0;
-            }
-            assert!((sum - area(&t)).abs() < 1e-4 * area(&t));
-            c /= (k * k) as f32;
-            assert!(
-                (c - (t[0] + t[1] + t[2]) / 3.0).length() < 1e-4,
-                "k {k}: {c}"
-            );
-        }
-    }
-
-    #[test]
-    fn stratified_points_lie_in_their_triangle_and_cover_it() {
-        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
-        for k in 1..5 {
-            let mut centroid = Vec3::ZERO;
-            for s in 0..k * k {
-                let p = stratified_point(&t, k, s, 7);
-                assert!(
-                    p.x >= -1e-6 && p.y >= -1e-6 && p.x + p.y <= 1.0 + 1e-6,
-                    "{p}"
-                );
-                centroid += p;
-            }
-            centroid /= (k * k) as f32;
-            // The mean of k² stratified uniform points is within ~1/k of the centroid 1/3.
-            assert!((centroid - Vec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0)).length() < 0.5 / k as f32);
-        }
-    }
-}

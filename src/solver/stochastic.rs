@@ -17,11 +17,14 @@
 //! going and absorb-or-reflect the rest, so shadows of foliage are partial, as with the
 //! deterministic form factors.
 
-use super::form_factor::{hash, unit};
-use super::lighting::orthonormal_basis;
+use super::{Phase, Solver};
 use crate::accel::Bvh;
+use crate::geometry::orthonormal_basis;
+use crate::geometry::sampling::{cosine_direction, hash, point_in_triangle, unit};
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Rays per parallel chunk; chunks are reduced in order, so results do not depend on the
 /// thread count.
@@ -94,18 +97,9 @@ pub fn trace_chunk(
         let e = &mesh.elements[i];
         let patch = &mesh.patches[e.patch as usize];
         // Uniform point on the element, cosine-weighted direction (Malley's method).
-        let (mut a, mut b) = (unit(hash(h ^ 0x51)), unit(hash(h ^ 0xA3)));
-        if a + b > 1.0 {
-            a = 1.0 - a;
-            b = 1.0 - b;
-        }
-        let origin = e.verts[0] + (e.verts[1] - e.verts[0]) * a + (e.verts[2] - e.verts[0]) * b;
-        let (t, bt) = orthonormal_basis(e.normal);
+        let origin = point_in_triangle(&e.verts, unit(hash(h ^ 0x51)), unit(hash(h ^ 0xA3)));
         let (r1, r2) = (unit(hash(h ^ 0x1F3)), unit(hash(h ^ 0x2E7)));
-        let rad = r1.sqrt();
-        let phi = std::f32::consts::TAU * r2;
-        let dir =
-            t * (rad * phi.cos()) + bt * (rad * phi.sin()) + e.normal * (1.0 - r1).max(0.0).sqrt();
+        let dir = cosine_direction(e.normal, orthonormal_basis(e.normal), r1, r2);
         let mut power = u * (share / s);
         let mut from = origin + e.normal * eps;
         let mut skip = patch.scene_triangle;
@@ -137,4 +131,85 @@ pub fn trace_chunk(
         }
     }
     out
+}
+
+/// A stochastic Jacobi iteration split over several steps.
+pub(super) struct Pending {
+    sources: Sources,
+    rays: usize,
+    next_chunk: usize,
+    added: Vec<DVec3>,
+    arrived: f64,
+}
+
+impl Solver {
+    /// Traces a few chunks of the current stochastic iteration; finishes it when all its
+    /// rays are done.
+    pub(super) fn stochastic_chunk(&mut self) {
+        let mesh = Arc::clone(&self.mesh);
+        let n = mesh.elements.len();
+        let pending = match self.pending.take() {
+            Some(p) => p,
+            None => {
+                let sources = Sources::new(&mesh, &self.unshot);
+                let fraction = sources.total / self.power_scale;
+                self.stats.unshot_fraction = Some(fraction);
+                self.stats.residual = Some(fraction);
+                if fraction <= self.settings.tolerance {
+                    self.phase = Phase::Done;
+                    return;
+                }
+                Pending {
+                    sources,
+                    rays: self
+                        .settings
+                        .stochastic_rays
+                        .unwrap_or((16 * n).max(1 << 18)),
+                    next_chunk: 0,
+                    added: vec![DVec3::ZERO; n],
+                    arrived: 0.0,
+                }
+            }
+        };
+        let mut p = pending;
+        let chunks = p.rays.div_ceil(CHUNK_RAYS);
+        let end = (p.next_chunk + 2 * rayon::current_num_threads().max(1)).min(chunks);
+        let iteration = self.stats.iterations;
+        let (bvh, refl, unshot, src, rays) = (
+            &self.bvh,
+            &self.reflectance,
+            &self.unshot,
+            &p.sources,
+            p.rays,
+        );
+        let parts: Vec<Deposits> = (p.next_chunk..end)
+            .into_par_iter()
+            .map(|c| {
+                let first = c * CHUNK_RAYS;
+                let count = CHUNK_RAYS.min(rays - first);
+                trace_chunk(&mesh, bvh, refl, unshot, src, rays, first, count, iteration)
+            })
+            .collect();
+        for part in parts {
+            p.arrived += part.arrived;
+            for (j, add) in part.added {
+                p.added[j as usize] += add;
+            }
+        }
+        let traced = (end * CHUNK_RAYS).min(p.rays) - p.next_chunk * CHUNK_RAYS;
+        self.stats.rays += traced as u64;
+        p.next_chunk = end;
+        if end < chunks {
+            self.pending = Some(p);
+            return;
+        }
+        for (i, add) in p.added.iter().enumerate() {
+            self.radiosity[i] += *add;
+        }
+        self.unshot = p.added;
+        self.shot_power += p.sources.total;
+        self.captured_power += p.arrived;
+        self.stats.energy_balance = Some(self.captured_power / self.shot_power);
+        self.stats.iterations += 1;
+    }
 }

@@ -442,7 +442,7 @@ impl App {
             self.recent.truncate(10);
             if let Some(p) = recent_path() {
                 let _ = std::fs::create_dir_all(p.parent().unwrap_or(Path::new(".")));
-                let _ = crate::export::write_atomic(&p, self.recent.join("\n").as_bytes());
+                let _ = crate::files::write_atomic(&p, self.recent.join("\n").as_bytes());
             }
         }
     }
@@ -609,7 +609,7 @@ impl App {
                     self.stage = None;
                 }
                 Event::Failed { error, .. } => {
-                    self.error = Some(error);
+                    self.error = Some(error.to_string());
                     self.stage = None;
                 }
                 Event::Refined { mesh, .. } => {
@@ -624,7 +624,7 @@ impl App {
                 }
                 Event::Exported { result, .. } => match result {
                     Ok(p) => self.status = format!("exported {}", p.display()),
-                    Err(e) => self.error = Some(e),
+                    Err(e) => self.error = Some(e.to_string()),
                 },
             }
         }
@@ -762,7 +762,7 @@ impl App {
             "solver_seconds": self.stats.seconds,
             "iterations": self.stats.iterations,
         });
-        let _ = crate::export::write_atomic(path, json.to_string().as_bytes());
+        let _ = crate::files::write_atomic(path, json.to_string().as_bytes());
     }
 
     /// A file dialog, or the path field when no dialog service answers. rfd's portal
@@ -1422,15 +1422,16 @@ impl App {
         });
         let current = self.mesh.as_ref().map(|m| m.element_size).unwrap_or(0.0);
         ui.label(format!("in use: {current:.4} m"));
-        let mut split = !self.mesh_settings.no_contact_lines;
         let toggled = ui
-            .checkbox(&mut split, "Split at contact lines")
+            .checkbox(
+                &mut self.mesh_settings.contact_lines,
+                "Split at contact lines",
+            )
             .on_hover_text(
                 "Cut surfaces where others touch or pierce them (a box's base on a floor), \
                  so light and shadow do not leak across; meshes again",
             )
             .changed();
-        self.mesh_settings.no_contact_lines = !split;
         if ui.button("Mesh again with this size").clicked() || toggled {
             let source = self.source.clone();
             self.open(source);

@@ -11,6 +11,7 @@ pub mod camera;
 pub mod render;
 
 use crate::accel::Bvh;
+use crate::geometry::triangle_cross;
 use crate::mesh::Mesh;
 use anyhow::{Context, Result};
 use camera::Camera;
@@ -35,7 +36,7 @@ pub fn write_png(path: &Path, image: &image::RgbaImage) -> Result<()> {
             image::ImageFormat::Png,
         )
         .with_context(|| format!("{}: cannot encode the PNG", path.display()))?;
-    crate::export::write_atomic(path, &bytes)
+    Ok(crate::files::write_atomic(path, &bytes)?)
 }
 
 /// Bounding sphere (centre, radius) of the mesh's triangles in the mesh frame.
@@ -80,7 +81,7 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     let facing_centre = hits.iter().zip(&dirs).all(|(h, (d, _))| {
         h.as_ref().is_some_and(|h| {
             let t = &mesh.triangles[h.triangle as usize];
-            (t[1] - t[0]).cross(t[2] - t[0]).dot(*d) < 0.0
+            triangle_cross(&t).dot(*d) < 0.0
         })
     });
     if facing_centre {

@@ -1,4 +1,4 @@
-//! Light from outside the element system: punctual lights (`KHR_lights_punctual`), the
+//! Direct light from outside the element system: punctual lights (`KHR_lights_punctual`), the
 //! sun and a uniform sky. Their first bounce becomes part of each element's source term:
 //! E'_i = E_i + ρ_i H_i, with H_i the irradiance they deliver at the element's centroid
 //! (W/m²), so the radiosity system B = E' + ρ F B then carries every later bounce.
@@ -12,10 +12,11 @@
 //! - Uniform sky of radiance L: H = π L · (fraction of cosine-weighted directions that
 //!   leave the scene), estimated with stratified cosine-weighted rays (Malley's method).
 
-use super::form_factor::{hash, unit};
+use super::ExternalLight;
 use crate::accel::Bvh;
-use crate::mesh::Mesh;
-use crate::scene::{Environment, Light};
+use crate::geometry::sampling::{cosine_direction, hash, unit};
+use crate::geometry::{Frame, orthonormal_basis};
+use crate::scene::Light;
 use glam::{DVec3, Vec3};
 
 /// Sky rays per element: one per cell of an 8×8 stratified grid over the cosine-weighted
@@ -23,17 +24,10 @@ use glam::{DVec3, Vec3};
 /// silhouette crosses, about 8 of 64, so a few percent of π L at worst per element.
 pub const SKY_RAYS: u32 = 64;
 
-/// Lights in the mesh frame.
-#[derive(Clone, Debug, Default)]
-pub struct ExternalLight {
-    pub lights: Vec<Light>,
-    pub environment: Option<Environment>,
-}
-
 /// Irradiance (W/m² per channel) at point `x` with normal `n` on scene triangle `own`, and
-/// the number of rays cast. `lights` positions are world space; `mesh` converts.
+/// the number of rays cast. `x` and `n` are in `frame`; light positions are world space.
 pub fn irradiance(
-    mesh: &Mesh,
+    frame: &Frame,
     bvh: &Bvh,
     external: &ExternalLight,
     x: Vec3,
@@ -41,9 +35,8 @@ pub fn irradiance(
     own: u32,
     seed: u64,
 ) -> (Vec3, u32) {
-    let eps = mesh.epsilon();
-    let from = x + n * eps;
-    let far = mesh.scale * 4.0;
+    let from = x + n * frame.epsilon();
+    let far = frame.far();
     let mut h = Vec3::ZERO;
     let mut rays = 0;
     for light in &external.lights {
@@ -53,10 +46,10 @@ pub fn irradiance(
                 intensity,
                 range,
             } => {
-                let (g, r) = point_geometry(mesh, *position, x, n);
+                let (g, r) = point_geometry(frame, *position, x, n);
                 if g > 0.0 {
                     rays += 1;
-                    let v = bvh.transmittance(from, mesh.to_local(*position), [own, u32::MAX]);
+                    let v = bvh.transmittance(from, frame.to_local(*position), [own, u32::MAX]);
                     h += *intensity * (g * v * range_falloff(r, *range));
                 }
             }
@@ -68,13 +61,13 @@ pub fn irradiance(
                 inner_cone,
                 outer_cone,
             } => {
-                let (g, r) = point_geometry(mesh, *position, x, n);
+                let (g, r) = point_geometry(frame, *position, x, n);
                 if g > 0.0 {
-                    let to_x = (mesh.origin + x.as_dvec3() - *position).normalize_or_zero();
+                    let to_x = (frame.origin + x.as_dvec3() - *position).normalize_or_zero();
                     let cone = spot_attenuation(to_x.dot(*direction), *inner_cone, *outer_cone);
                     if cone > 0.0 {
                         rays += 1;
-                        let v = bvh.transmittance(from, mesh.to_local(*position), [own, u32::MAX]);
+                        let v = bvh.transmittance(from, frame.to_local(*position), [own, u32::MAX]);
                         h += *intensity * (g * v * cone * range_falloff(r, *range));
                     }
                 }
@@ -111,9 +104,9 @@ pub fn irradiance(
     (h, rays)
 }
 
-/// cosθ / r² for a point light at world `position` seen from `x` (mesh frame), and r.
-fn point_geometry(mesh: &Mesh, position: DVec3, x: Vec3, n: Vec3) -> (f32, f64) {
-    let d = position - (mesh.origin + x.as_dvec3());
+/// cosθ / r² for a point light at world `position` seen from `x` (in `frame`), and r.
+fn point_geometry(frame: &Frame, position: DVec3, x: Vec3, n: Vec3) -> (f32, f64) {
+    let d = position - (frame.origin + x.as_dvec3());
     let r2 = d.length_squared();
     if r2 <= 0.0 {
         return (0.0, 0.0);
@@ -153,23 +146,9 @@ fn sky_fraction(bvh: &Bvh, from: Vec3, n: Vec3, own: u32, far: f32, seed: u64) -
             let h = hash(seed ^ ((i * k + j) as u64).wrapping_mul(0x9E37_79B9));
             let u = (i as f32 + unit(h)) / k as f32;
             let v = (j as f32 + unit(hash(h))) / k as f32;
-            // Malley: uniform on the disk, projected up to the hemisphere.
-            let r = u.sqrt();
-            let phi = 2.0 * std::f32::consts::PI * v;
-            let d = t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u).max(0.0).sqrt();
+            let d = cosine_direction(n, (t, b), u, v);
             open += bvh.transmittance(from, from + d * far, [own, u32::MAX]);
         }
     }
     open / (k * k) as f32
-}
-
-/// An orthonormal basis (t, b) perpendicular to unit `n` (Duff et al. 2017).
-pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1.0f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
 }

@@ -1,0 +1,37 @@
+//! `radiosity probe`: solve, then report the radiosity at given surface points, as the
+//! viewer's reconstruction shows it there.
+
+use super::csv::{read_points, values_csv};
+use super::options::SolveOptions;
+use super::{load_scene, prepare, run_with_progress};
+use crate::files::write_atomic;
+use crate::mesh::Reconstruction;
+use crate::pipeline::probe_values;
+use anyhow::Result;
+use std::path::Path;
+
+/// Reads `points`, solves `scene`, and writes `values.csv` to `out` (standard output when
+/// `None`).
+pub fn probe(
+    scene: &str,
+    points: &Path,
+    out: Option<&Path>,
+    reconstruction: Reconstruction,
+    options: &SolveOptions,
+    quiet: bool,
+) -> Result<()> {
+    let pts = read_points(points)?;
+    let s = load_scene(scene, options, quiet)?;
+    let prepared = prepare(&s, options, quiet);
+    let mut solver = prepared.solver(options.solver_settings())?;
+    run_with_progress(&mut solver, options.time_limit, quiet)?;
+    let values = probe_values(solver.mesh(), &solver.radiosity(), &pts, reconstruction);
+    let csv = values_csv(&pts, &values);
+    match out {
+        Some(path) => Ok(write_atomic(path, csv.as_bytes())?),
+        None => {
+            print!("{csv}");
+            Ok(())
+        }
+    }
+}

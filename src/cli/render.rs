@@ -1,0 +1,73 @@
+//! `radiosity render`: solve, then draw the viewer's picture offscreen with the same wgpu
+//! renderer, camera defaults and auto exposure.
+
+use super::options::{RenderOptions, SolveOptions};
+use super::{load_scene, prepare, run_with_progress};
+use crate::accel::Bvh;
+use crate::mesh::Mesh;
+use crate::view;
+use crate::view::render::{Display, render_image};
+use anyhow::Result;
+use glam::Vec3;
+use std::path::Path;
+
+/// Solves `scene` with `options` and writes the rendered PNG to `out`.
+pub fn render(
+    scene: &str,
+    out: &Path,
+    picture: &RenderOptions,
+    options: &SolveOptions,
+    quiet: bool,
+) -> Result<()> {
+    let s = load_scene(scene, options, quiet)?;
+    let prepared = prepare(&s, options, quiet);
+    let mut solver = prepared.solver(options.solver_settings())?;
+    run_with_progress(&mut solver, options.time_limit, quiet)?;
+    render_png(
+        solver.mesh(),
+        &prepared.bvh,
+        &solver.radiosity(),
+        picture,
+        out,
+        quiet,
+    )
+}
+
+/// Renders `radiosity` on `mesh` to the PNG `out` with the viewer's renderer.
+fn render_png(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    radiosity: &[Vec3],
+    picture: &RenderOptions,
+    out: &Path,
+    quiet: bool,
+) -> Result<()> {
+    let mut camera = view::default_camera(mesh, bvh);
+    if let Some((yaw, pitch, zoom)) = picture.camera {
+        camera.yaw = yaw.to_radians();
+        camera.pitch = pitch.clamp(-89.0, 89.0).to_radians();
+        camera.distance *= zoom;
+    }
+    let auto = view::auto_exposure(mesh, radiosity);
+    let display = Display {
+        reconstruction: picture.mode,
+        ev: picture.ev.or(auto.map(|a| a.0)).unwrap_or(0.0),
+        tonemap: picture.tonemap,
+        false_colour: picture.false_colour,
+        log_range: auto.map(|a| a.1).unwrap_or((-2.0, 2.0)),
+        wireframe: picture.wireframe,
+        selected: None,
+    };
+    let (image, adapter) = render_image(
+        mesh,
+        radiosity,
+        &camera,
+        &display,
+        [picture.size.0, picture.size.1],
+    )?;
+    view::write_png(out, &image)?;
+    if !quiet {
+        eprintln!("rendered {} with {adapter}", out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! Progressive refinement (Cohen, Chen, Wallace & Greenberg, "A progressive refinement
+//! approach to fast radiosity image generation", SIGGRAPH 1988): shoot the patch with the
+//! most unshot power through its cached form-factor column; the ambient term for display.
+
+use super::{Method, Phase, Solver, Sparse, sum3d};
+use crate::solver::form_factor::element_to_patch;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+impl Solver {
+    /// Cohen et al. 1988's ambient term: the unshot radiosity spread uniformly and reflected
+    /// by the average reflectance, R · Σ ΔB_i A_i / Σ A_i with R = 1 / (1 − ρ_avg). Add
+    /// ρ_i × this to B_i for display; it fades to zero as the solve converges.
+    pub fn ambient(&self) -> Vec3 {
+        if self.settings.method != Method::Progressive || self.phase == Phase::Done {
+            return Vec3::ZERO;
+        }
+        let mut area = 0.0f64;
+        let mut rho = DVec3::ZERO;
+        let mut unshot = DVec3::ZERO;
+        for (i, e) in self.mesh.elements.iter().enumerate() {
+            let a = e.area as f64;
+            area += a;
+            rho += self.reflectance[i].as_dvec3() * a;
+            unshot += self.unshot[i] * a;
+        }
+        if area <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let r = (DVec3::ONE - rho / area).max(DVec3::splat(1e-3)).recip();
+        (r * unshot / area).as_vec3()
+    }
+
+    pub(super) fn column(&mut self, p: usize) -> Sparse {
+        if let Some(c) = &self.columns[p] {
+            return c.clone();
+        }
+        let mesh = &self.mesh;
+        let bvh = &self.bvh;
+        let ff = self.settings.form_factors;
+        let n = mesh.elements.len();
+        let shooter = &mesh.patches[p];
+        let parts: Vec<(Vec<(u32, f32)>, u64)> = (0..n)
+            .into_par_iter()
+            .with_min_len(Self::CHUNK)
+            .fold(
+                || (Vec::new(), 0u64),
+                |(mut v, mut rays), i| {
+                    // Cheap rejection before the exact form factor: receivers behind the
+                    // shooter's plane see nothing of it.
+                    let e = &mesh.elements[i];
+                    if shooter.normal.dot(e.centroid() - shooter.verts[0]) > 0.0 {
+                        let (f, r) = element_to_patch(mesh, bvh, i, p, &ff);
+                        rays += r as u64;
+                        if f > 0.0 {
+                            v.push((i as u32, f));
+                        }
+                    }
+                    (v, rays)
+                },
+            )
+            .collect();
+        let mut col = Vec::new();
+        for (v, rays) in parts {
+            col.extend(v);
+            self.stats.rays += rays;
+        }
+        // rayon's fold/collect keeps the index order of the pieces, so `col` is sorted.
+        let col: Sparse = Arc::from(col);
+        let bytes = col.len() * std::mem::size_of::<(u32, f32)>();
+        if self.cache_used + bytes <= self.settings.cache_bytes {
+            self.cache_used += bytes;
+            self.columns[p] = Some(col.clone());
+        }
+        col
+    }
+
+    /// One progressive-refinement shot from the patch with the most unshot power.
+    pub(super) fn shoot(&mut self) {
+        let mesh = Arc::clone(&self.mesh);
+        let (mut best, mut best_power, mut total) = (usize::MAX, 0.0f64, 0.0f64);
+        for (pi, p) in mesh.patches.iter().enumerate() {
+            // Signed unshot radiosity (after an edit) is shot like positive: by magnitude.
+            let mut power = 0.0;
+            for i in p.elements.clone() {
+                power +=
+                    sum3d(self.unshot[i as usize].abs()) * mesh.elements[i as usize].area as f64;
+            }
+            total += power;
+            if power > best_power {
+                best_power = power;
+                best = pi;
+            }
+        }
+        let fraction = total / self.power_scale;
+        self.stats.unshot_fraction = Some(fraction);
+        self.stats.residual = Some(fraction);
+        if fraction <= self.settings.tolerance || best == usize::MAX {
+            self.phase = Phase::Done;
+            return;
+        }
+        let p = &mesh.patches[best];
+        let mut shot = DVec3::ZERO;
+        for i in p.elements.clone() {
+            shot += self.unshot[i as usize] * mesh.elements[i as usize].area as f64;
+            self.unshot[i as usize] = DVec3::ZERO;
+        }
+        let shot = shot / p.area as f64;
+        self.shot_total[best] += shot;
+        let column = self.column(best);
+        let mut captured = 0.0f64;
+        for &(i, f) in column.iter() {
+            let i = i as usize;
+            let g = shot * f as f64;
+            self.gathered[i] += g;
+            let d = self.reflectance[i].as_dvec3() * g;
+            self.radiosity[i] += d;
+            self.unshot[i] += d;
+            captured += f as f64 * mesh.elements[i].area as f64;
+        }
+        let shot_power = sum3d(shot.abs()) * p.area as f64;
+        self.shot_power += shot_power;
+        self.captured_power += captured / p.area as f64 * shot_power;
+        self.stats.energy_balance = Some(self.captured_power / self.shot_power);
+        self.stats.iterations += 1;
+    }
+}
