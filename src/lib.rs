@@ -1,9 +1,13 @@
 //! `radiosity`: diffuse global illumination for glTF scenes.
 //!
-//! The pipeline (DESIGN.md §1): [`scene`] (CPU truth) → [`mesh`] (patches and elements) →
-//! [`accel`] (BVH, occlusion) → [`solver`] (form factors, methods, `Solver::step`). The core
-//! has no GUI or GPU dependency; `cli` drives it from the command line and [`worker`] from
-//! a thread for the viewer ([`view`]).
+//! The pipeline, bottom up (ARCHITECTURE.md has the picture and the module table):
+//! [`geometry`] and [`files`] (shared helpers) → [`accel`] (BVH, shadow rays) → [`scene`]
+//! (the CPU truth, opened from glTF or `builtin:`) → [`light`] (lights outside the
+//! element system) → [`mesh`] (patches, elements, discontinuity lines, reconstruction) →
+//! [`solver`] (form factors, methods, `Solver::step`) → [`export`], [`pipeline`] (scene →
+//! mesh → BVH → solver) → [`worker`] (the solver thread) → `view` (the viewer, cargo
+//! feature `viewer`) and [`cli`]. Each layer uses only the layers before it
+//! (`tests/layers.rs` checks this).
 
 pub mod accel;
 pub mod analytic;

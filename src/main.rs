@@ -1,4 +1,4 @@
-//! The `radiosity` command line; see `radiosity --help` and DESIGN.md §5.
+//! The `radiosity` command line; see `radiosity --help` and the README's "Command line".
 
 use clap::Parser;
 

@@ -1,4 +1,4 @@
-//! The command-line contract (DESIGN.md §5): outputs, exit status, and bad input.
+//! The command-line contract (the README's "Command line"): outputs, exit status, and bad input.
 
 use std::path::PathBuf;
 use std::process::Command;

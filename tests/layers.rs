@@ -108,9 +108,14 @@ fn crate_paths(text: &str) -> BTreeSet<String> {
     found
 }
 
-/// How many `super::` a path climbs at most in `text`.
+/// How many `super::` a path of the file's own module climbs at most in `text` (inline
+/// modules, such as `mod tests { use super::*; }`, are one level deeper and not counted).
 fn deepest_super(text: &str) -> usize {
     text.lines()
+        .take_while(|l| {
+            let l = l.trim_start();
+            !(l.starts_with("mod ") && l.trim_end().ends_with('{'))
+        })
         .map(code)
         .flat_map(|l| {
             l.match_indices("super::").map(move |(i, _)| {
@@ -137,6 +142,7 @@ fn the_parsing_sees_plain_paths_groups_and_skips_comments() {
     let found: Vec<String> = crate_paths(text).into_iter().collect();
     assert_eq!(found, ["files", "light", "mesh", "scene"]);
     assert_eq!(deepest_super("use super::super::X; use super::Y;"), 2);
+    assert_eq!(deepest_super("use super::X;\nmod tests {\n    use super::super::Y;\n}"), 1);
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The solver thread's protocol (DESIGN.md §2), with no GUI: load → snapshots →
+//! The solver thread's protocol (ARCHITECTURE.md, "Threads and messages"), with no GUI: load → snapshots →
 //! converged; the converged snapshot equals a direct `Solver::run` (the worker adds no
 //! error of its own); cancel by opening another scene; stale job ids; errors and bad files
 //! become `Failed` and the worker lives on; pause, resume and settings changes.

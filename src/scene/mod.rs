@@ -1,8 +1,9 @@
 //! The scene as the CPU holds it: objects (triangle meshes with a `world_from_local`
 //! transform), materials, punctual lights and the environment (sky, sun).
 //!
-//! This is the truth every later stage (mesh, accel, solver) derives from. Units follow
-//! DESIGN.md §4: reflectance ρ is unitless in [0, 0.999] per channel; `Material::emission`
+//! This is the truth every later stage (mesh, accel, solver) derives from. Units
+//! (ARCHITECTURE.md, "Units and conventions"): reflectance ρ is unitless in [0, 0.999] per
+//! channel; `Material::emission`
 //! is the emitted *radiance* L_e in W/(m²·sr) (emitted radiosity E = π L_e); point and spot
 //! light intensities are in W/sr, directional lights and the sun give irradiance in W/m².
 
@@ -104,7 +105,7 @@ impl Object {
 }
 
 /// A punctual light (`KHR_lights_punctual`), in world space. Intensities are radiometric:
-/// no 683 lm/W factor (DESIGN.md §4).
+/// no 683 lm/W factor (ARCHITECTURE.md, "Units and conventions").
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     /// Isotropic point light: irradiance I cosθ / r² (times the range falloff).

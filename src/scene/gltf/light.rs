@@ -2,7 +2,7 @@
 //!
 //! Per the extension (README, "Directional" / "Point" / "Spot"): lights shine along the
 //! node's local −Z; point and spot lights sit at the node's origin; scale does not change
-//! the cone. Intensities are taken radiometrically (DESIGN.md §4): `color × intensity` is
+//! the cone. Intensities are taken radiometrically (ARCHITECTURE.md, "Units and conventions"): `color × intensity` is
 //! W/sr for point and spot lights and W/m² of irradiance for directional ones.
 //!
 //! The spot cone is stored as its two half-angles; the angular falloff between them is the

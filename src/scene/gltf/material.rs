@@ -1,4 +1,4 @@
-//! glTF materials → [`Material`] (DESIGN.md §4) plus what the texture pass needs.
+//! glTF materials → [`Material`] (units: ARCHITECTURE.md, "Units and conventions") plus what the texture pass needs.
 
 use super::Warnings;
 use super::json;

@@ -9,7 +9,7 @@
 //! bounds-checked (`accessor.rs`); the whole load still runs under `catch_unwind`, so a bug
 //! becomes a [`LoadError`] rather than a crash.
 //!
-//! What comes out (DESIGN.md §4):
+//! What comes out (units: ARCHITECTURE.md, "Units and conventions"):
 //! - one [`Object`] per (node, mesh) of the default scene (or scene 0, or every root node
 //!   when there are no scenes), all its primitives merged, `world_from_local` composed in
 //!   f64 from the node hierarchy (TRS or `matrix`);
