@@ -1,7 +1,7 @@
 //! `radiosity`: diffuse global illumination for glTF scenes.
 //!
 //! The pipeline, bottom up (ARCHITECTURE.md has the picture and the module table):
-//! [`geometry`] and [`files`] (shared helpers) → [`accel`] (BVH, shadow rays) → [`scene`]
+//! [`geometry`], [`cancel`] and [`files`] (shared helpers) → [`accel`] (BVH, shadow rays) → [`scene`]
 //! (the CPU truth, opened from glTF or `builtin:`) → [`light`] (lights outside the
 //! element system) → [`mesh`] (patches, elements, discontinuity lines, reconstruction) →
 //! [`solver`] (form factors, methods, `Solver::step`) → [`export`], [`pipeline`] (scene →
@@ -11,6 +11,7 @@
 
 pub mod accel;
 pub mod analytic;
+pub mod cancel;
 pub mod cli;
 pub mod export;
 pub mod files;

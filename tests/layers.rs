@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 
 /// The layers, bottom first. A module may use modules earlier in this list, never later.
 const LAYERS: &[&str] = &[
-    "geometry", "files", "accel", "scene", "light", "mesh", "solver", "export", "pipeline",
-    "analytic", "worker", "view", "cli",
+    "geometry", "cancel", "files", "accel", "scene", "light", "mesh", "solver", "export",
+    "pipeline", "analytic", "worker", "view", "cli",
 ];
 
 /// Files at the crate root that only declare or start things.
@@ -142,7 +142,10 @@ fn the_parsing_sees_plain_paths_groups_and_skips_comments() {
     let found: Vec<String> = crate_paths(text).into_iter().collect();
     assert_eq!(found, ["files", "light", "mesh", "scene"]);
     assert_eq!(deepest_super("use super::super::X; use super::Y;"), 2);
-    assert_eq!(deepest_super("use super::X;\nmod tests {\n    use super::super::Y;\n}"), 1);
+    assert_eq!(
+        deepest_super("use super::X;\nmod tests {\n    use super::super::Y;\n}"),
+        1
+    );
 }
 
 #[test]
