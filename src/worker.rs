@@ -633,11 +633,11 @@ fn load(
         job: id,
         stage: Stage::Loading,
     });
-    let scene =
-        crate::scene::open(&source.0, None, None).map_err(|e| JobError::Open(Arc::new(e)))?;
-    if cancel.load(Ordering::Relaxed) {
-        return Ok(None);
-    }
+    let scene = match crate::scene::open_cancellable(&source.0, None, None, cancel) {
+        Ok(scene) => scene,
+        Err(_) if cancel.load(Ordering::Relaxed) => return Ok(None),
+        Err(e) => return Err(JobError::Open(Arc::new(e))),
+    };
     send(Event::Progress {
         job: id,
         stage: Stage::Meshing,

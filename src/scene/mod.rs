@@ -11,7 +11,7 @@ pub mod builtin;
 pub mod gltf;
 mod open;
 
-pub use open::{OpenError, open};
+pub use open::{OpenError, open, open_cancellable};
 
 use glam::{DMat4, DVec3, Vec3};
 

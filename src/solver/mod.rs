@@ -51,6 +51,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use stochastic::Pending;
+use types::Stop;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
@@ -250,25 +251,11 @@ impl Solver {
             if cancel.load(Ordering::Relaxed) {
                 break StepOutcome::Cancelled;
             }
-            match self.phase {
-                Phase::Lighting(next) => self.lighting_chunk(next),
-                Phase::Rows(next) => self.rows_chunk(next),
-                Phase::Iterating => match self.settings.method {
-                    Method::Progressive => self.shoot(),
-                    Method::Jacobi => self.jacobi_sweep(),
-                    Method::GaussSeidel => self.gauss_seidel_sweep(),
-                    Method::StochasticJacobi => self.stochastic_chunk(),
-                    Method::Direct => self.direct_solve()?,
-                },
-                Phase::Done => {
-                    if self.refine() {
-                        continue;
-                    }
-                    break StepOutcome::Converged;
-                }
-            }
-            if self.phase == Phase::Done && !self.refine() {
-                break StepOutcome::Converged;
+            match self.work(cancel) {
+                Ok(Some(outcome)) => break outcome,
+                Ok(None) => {}
+                Err(Stop::Cancelled) => break StepOutcome::Cancelled,
+                Err(Stop::Failed(e)) => return Err(e),
             }
             if Instant::now() >= deadline {
                 break StepOutcome::Working;
@@ -277,6 +264,27 @@ impl Solver {
         self.stats.seconds += start.elapsed().as_secs_f64();
         self.stats.converged = self.phase == Phase::Done;
         Ok(outcome)
+    }
+
+    /// One piece of work of the current phase; `Some(Converged)` when the solve is done and
+    /// no refinement pass changed the mesh.
+    fn work(&mut self, cancel: &AtomicBool) -> Result<Option<StepOutcome>, Stop> {
+        match self.phase {
+            Phase::Lighting(next) => self.lighting_chunk(next),
+            Phase::Rows(next) => self.rows_chunk(next),
+            Phase::Iterating => match self.settings.method {
+                Method::Progressive => self.shoot(cancel)?,
+                Method::Jacobi => self.jacobi_sweep(),
+                Method::GaussSeidel => self.gauss_seidel_sweep(),
+                Method::StochasticJacobi => self.stochastic_chunk(),
+                Method::Direct => self.direct_solve(cancel)?,
+            },
+            Phase::Done => {}
+        }
+        if self.phase == Phase::Done && !self.refine(cancel)? {
+            return Ok(Some(StepOutcome::Converged));
+        }
+        Ok(None)
     }
 
     /// Steps until converged, cancelled or `time_limit` has passed; returns the last outcome.

@@ -3,10 +3,12 @@
 //! most unshot power through its cached form-factor column; the ambient term for display.
 
 use super::{Method, Phase, Solver, Sparse, sum3d};
+use crate::cancel::{Cancelled, check};
 use crate::solver::form_factor::element_to_patch;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 impl Solver {
     /// Cohen et al. 1988's ambient term: the unshot radiosity spread uniformly and reflected
@@ -32,16 +34,48 @@ impl Solver {
         (r * unshot / area).as_vec3()
     }
 
-    pub(super) fn column(&mut self, p: usize) -> Sparse {
+    /// The form-factor column of patch `p`: (element, F_ip) for every element that sees it,
+    /// sorted by element; from the cache when it is there. Computed in blocks of elements,
+    /// checking `cancel` between them.
+    pub(super) fn column(&mut self, p: usize, cancel: &AtomicBool) -> Result<Sparse, Cancelled> {
         if let Some(c) = &self.columns[p] {
-            return c.clone();
+            return Ok(c.clone());
         }
+        let mut col = Vec::new();
+        let mut rays = 0;
+        let n = self.mesh.elements.len();
+        for start in (0..n).step_by(Self::COLUMN_BLOCK) {
+            check(cancel)?;
+            let end = (start + Self::COLUMN_BLOCK).min(n);
+            rays += self.column_block(p, start..end, &mut col);
+        }
+        self.stats.rays += rays;
+        let col: Sparse = Arc::from(col);
+        let bytes = col.len() * std::mem::size_of::<(u32, f32)>();
+        if self.cache_used + bytes <= self.settings.cache_bytes {
+            self.cache_used += bytes;
+            self.columns[p] = Some(col.clone());
+        }
+        Ok(col)
+    }
+
+    /// Receivers per block of a column between cancel checks: about a tenth of a second of
+    /// shadow rays on one core at worst.
+    const COLUMN_BLOCK: usize = 1 << 15;
+
+    /// Appends F_ip of the elements in `range` to `col` (in element order) and returns the
+    /// rays cast.
+    fn column_block(
+        &self,
+        p: usize,
+        range: std::ops::Range<usize>,
+        col: &mut Vec<(u32, f32)>,
+    ) -> u64 {
         let mesh = &self.mesh;
         let bvh = &self.bvh;
         let ff = self.settings.form_factors;
-        let n = mesh.elements.len();
         let shooter = &mesh.patches[p];
-        let parts: Vec<(Vec<(u32, f32)>, u64)> = (0..n)
+        let parts: Vec<(Vec<(u32, f32)>, u64)> = range
             .into_par_iter()
             .with_min_len(Self::CHUNK)
             .fold(
@@ -61,23 +95,18 @@ impl Solver {
                 },
             )
             .collect();
-        let mut col = Vec::new();
-        for (v, rays) in parts {
+        // rayon's fold/collect keeps the index order of the pieces, so `col` stays sorted.
+        let mut rays = 0;
+        for (v, r) in parts {
             col.extend(v);
-            self.stats.rays += rays;
+            rays += r;
         }
-        // rayon's fold/collect keeps the index order of the pieces, so `col` is sorted.
-        let col: Sparse = Arc::from(col);
-        let bytes = col.len() * std::mem::size_of::<(u32, f32)>();
-        if self.cache_used + bytes <= self.settings.cache_bytes {
-            self.cache_used += bytes;
-            self.columns[p] = Some(col.clone());
-        }
-        col
+        rays
     }
 
     /// One progressive-refinement shot from the patch with the most unshot power.
-    pub(super) fn shoot(&mut self) {
+    /// `Err(Cancelled)` leaves the solve as it was (the column is computed first).
+    pub(super) fn shoot(&mut self, cancel: &AtomicBool) -> Result<(), Cancelled> {
         let mesh = Arc::clone(&self.mesh);
         let (mut best, mut best_power, mut total) = (usize::MAX, 0.0f64, 0.0f64);
         for (pi, p) in mesh.patches.iter().enumerate() {
@@ -98,8 +127,9 @@ impl Solver {
         self.stats.residual = Some(fraction);
         if fraction <= self.settings.tolerance || best == usize::MAX {
             self.phase = Phase::Done;
-            return;
+            return Ok(());
         }
+        let column = self.column(best, cancel)?;
         let p = &mesh.patches[best];
         let mut shot = DVec3::ZERO;
         for i in p.elements.clone() {
@@ -108,7 +138,6 @@ impl Solver {
         }
         let shot = shot / p.area as f64;
         self.shot_total[best] += shot;
-        let column = self.column(best);
         let mut captured = 0.0f64;
         for &(i, f) in column.iter() {
             let i = i as usize;
@@ -124,5 +153,6 @@ impl Solver {
         self.captured_power += captured / p.area as f64 * shot_power;
         self.stats.energy_balance = Some(self.captured_power / self.shot_power);
         self.stats.iterations += 1;
+        Ok(())
     }
 }

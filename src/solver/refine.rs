@@ -3,14 +3,20 @@
 //! carry the solve over to the new mesh without losing or creating light.
 
 use super::{Method, Phase, Solver, Sparse, external_factor, sum3, sum3d};
+use crate::cancel::{Cancelled, check};
 use crate::light::Punctual;
-use crate::mesh::{LightTargets, Moved};
+use crate::mesh::{LightTargets, Mesh, Moved};
 use crate::solver::form_factor::element_to_patch;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 /// Per-element values carried through a refinement: children start from their parent's.
+/// A refined element's re-evaluation: external irradiance factor h, gathered H, its
+/// form factors to the patches needed, rays cast.
+type Evaluated = (Vec3, DVec3, Vec<(u32, f32)>, u64);
+
 pub(super) fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Vec<T> {
     let mut out = vec![T::default(); n];
     for (old, m) in moved.iter().enumerate() {
@@ -24,7 +30,7 @@ pub(super) fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Ve
 
 impl Solver {
     /// One pass of a-posteriori adaptive subdivision on a converged solve (see
-    /// [`crate::mesh::AdaptiveSettings`]); returns whether the mesh changed, in which case
+    /// [`crate::mesh::AdaptiveSettings`]); returns whether the mesh changed (`Err(Cancelled)`: it did not), in which case
     /// the solve goes on from where it was.
     ///
     /// New elements are re-evaluated, not interpolated: progressive refinement gathers
@@ -34,12 +40,12 @@ impl Solver {
     /// refinement neither creates nor loses energy. The gathering methods compute the
     /// children's rows and sweep again from the parent's values; the direct method solves
     /// again; stochastic Jacobi carries the parent's values.
-    pub(super) fn refine(&mut self) -> bool {
+    pub(super) fn refine(&mut self, cancel: &AtomicBool) -> Result<bool, Cancelled> {
         let Some(a) = self.settings.adaptive.clone() else {
-            return false;
+            return Ok(false);
         };
         if self.refine_passes >= a.max_passes || self.stats.source_power <= 0.0 {
-            return false;
+            return Ok(false);
         }
         let min_size = a.min_size.unwrap_or(self.mesh.element_size / 8.0);
         let values = self.radiosity();
@@ -50,21 +56,14 @@ impl Solver {
         self.mesh.balance(&mut marked);
         let count = marked.iter().filter(|m| **m).count();
         if count == 0 || self.mesh.elements.len() + 3 * count > a.max_elements {
-            return false;
+            return Ok(false);
         }
-        self.refine_passes += 1;
+        check(cancel)?;
         let mut mesh = (*self.mesh).clone();
         let moved = mesh.refine(&marked);
         mesh.mark_hard_shadows(&self.bvh, &self.external, min_size);
         let mesh = Arc::new(mesh);
         let n = mesh.elements.len();
-        self.radiosity = remap(&self.radiosity, &moved, n);
-        self.unshot = remap(&self.unshot, &moved, n);
-        self.gathered = remap(&self.gathered, &moved, n);
-        self.source = remap(&self.source, &moved, n);
-        self.reflectance = remap(&self.reflectance, &moved, n);
-        self.emission = remap(&self.emission, &moved, n);
-        self.external_in = remap(&self.external_in, &moved, n);
         let children: Vec<u32> = moved
             .iter()
             .flat_map(|m| match m {
@@ -73,41 +72,23 @@ impl Solver {
             })
             .collect();
         let had_rows = !self.rows.is_empty();
+        // The children are evaluated before anything changes, so a cancelled pass leaves
+        // the solve as it was.
+        let evaluated = self.evaluate_children(&mesh, &children, had_rows, cancel)?;
+        self.refine_passes += 1;
+        self.radiosity = remap(&self.radiosity, &moved, n);
+        self.unshot = remap(&self.unshot, &moved, n);
+        self.gathered = remap(&self.gathered, &moved, n);
+        self.source = remap(&self.source, &moved, n);
+        self.reflectance = remap(&self.reflectance, &moved, n);
+        self.emission = remap(&self.emission, &moved, n);
+        self.external_in = remap(&self.external_in, &moved, n);
         let mut old_rows = std::mem::take(&mut self.rows);
         self.mesh = mesh;
         self.pending = None;
         let old_columns = std::mem::replace(&mut self.columns, vec![None; self.mesh.patches.len()]);
         self.cache_used = 0;
-        // Re-evaluate the children: external light, and (progressive) what has been shot.
-        let mesh = Arc::clone(&self.mesh);
-        let (bvh, external, ff) = (&self.bvh, &self.external, self.settings.form_factors);
         let progressive = self.settings.method == Method::Progressive;
-        let shot_total = &self.shot_total;
-        let needed = |q: usize| had_rows || (progressive && shot_total[q] != DVec3::ZERO);
-        // Per child: external irradiance factor h, gathered H, its F to the patches needed,
-        // rays cast.
-        type Evaluated = (Vec3, DVec3, Vec<(u32, f32)>, u64);
-        let evaluated: Vec<Evaluated> = children
-            .par_iter()
-            .map(|&c| {
-                let c = c as usize;
-                let (h, mut rays) = external_factor(&mesh, bvh, external, c);
-                let mut gathered = DVec3::ZERO;
-                let mut row = Vec::new();
-                for (q, total) in shot_total.iter().enumerate() {
-                    if !needed(q) {
-                        continue;
-                    }
-                    let (f, r) = element_to_patch(&mesh, bvh, c, q, &ff);
-                    rays += r;
-                    if f > 0.0 {
-                        gathered += *total * f as f64;
-                        row.push((q as u32, f));
-                    }
-                }
-                (h, gathered, row, rays as u64)
-            })
-            .collect();
         if had_rows {
             let mut rows: Vec<Sparse> = vec![Arc::from(Vec::new()); n];
             for (old, m) in moved.iter().enumerate() {
@@ -130,7 +111,7 @@ impl Solver {
         }
         for (q, col) in old_columns.into_iter().enumerate() {
             let Some(col) = col else { continue };
-            if !needed(q) {
+            if !self.needs_form_factors(q, had_rows) {
                 continue;
             }
             let mut new: Vec<(u32, f32)> = col
@@ -169,7 +150,7 @@ impl Solver {
         self.stats.converged = false;
         self.mesh_version += 1;
         self.phase = Phase::Iterating;
-        true
+        Ok(true)
     }
 
     /// Marks elements across which the visibility of a main light source changes: shadow
@@ -215,4 +196,52 @@ impl Solver {
             marked[i as usize] = true;
         }
     }
+
+    /// Whether refined elements need their form factors to patch `q`: every patch for the
+    /// gathering and direct methods (they store rows), the patches that have shot for
+    /// progressive refinement.
+    fn needs_form_factors(&self, q: usize, had_rows: bool) -> bool {
+        had_rows
+            || (self.settings.method == Method::Progressive && self.shot_total[q] != DVec3::ZERO)
+    }
+
+    /// Re-evaluates the new `children` of `mesh`: per child its external irradiance factor
+    /// h, the radiosity H it gathers from everything shot so far, its form factors to the
+    /// patches needed, and the rays cast. In blocks, checking `cancel` between them.
+    fn evaluate_children(
+        &self,
+        mesh: &Mesh,
+        children: &[u32],
+        had_rows: bool,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<Evaluated>, Cancelled> {
+        let (bvh, external, ff) = (&self.bvh, &self.external, self.settings.form_factors);
+        let shot_total = &self.shot_total;
+        let mut evaluated = Vec::with_capacity(children.len());
+        for block in children.chunks(Self::CHILD_BLOCK) {
+            check(cancel)?;
+            evaluated.par_extend(block.par_iter().map(|&c| {
+                let c = c as usize;
+                let (h, mut rays) = external_factor(mesh, bvh, external, c);
+                let mut gathered = DVec3::ZERO;
+                let mut row = Vec::new();
+                for (q, total) in shot_total.iter().enumerate() {
+                    if !self.needs_form_factors(q, had_rows) {
+                        continue;
+                    }
+                    let (f, r) = element_to_patch(mesh, bvh, c, q, &ff);
+                    rays += r;
+                    if f > 0.0 {
+                        gathered += *total * f as f64;
+                        row.push((q as u32, f));
+                    }
+                }
+                (h, gathered, row, rays as u64)
+            }));
+        }
+        Ok(evaluated)
+    }
+
+    /// Children per block between cancel checks.
+    const CHILD_BLOCK: usize = 4096;
 }

@@ -2,6 +2,7 @@
 //! outcome of a step, and errors.
 
 use super::form_factor::FormFactorSettings;
+use crate::cancel::Cancelled;
 use crate::mesh::AdaptiveSettings;
 use glam::Vec3;
 use serde::Serialize;
@@ -151,6 +152,27 @@ pub enum SolverError {
     },
     #[error("the direct solve found the system singular")]
     Singular,
+}
+
+/// Why a piece of work inside [`Solver::step`](super::Solver::step) stopped early: the
+/// cancel flag (the step reports [`StepOutcome::Cancelled`]) or an error (the step returns
+/// it).
+#[derive(Debug)]
+pub(super) enum Stop {
+    Cancelled,
+    Failed(SolverError),
+}
+
+impl From<Cancelled> for Stop {
+    fn from(_: Cancelled) -> Stop {
+        Stop::Cancelled
+    }
+}
+
+impl From<SolverError> for Stop {
+    fn from(e: SolverError) -> Stop {
+        Stop::Failed(e)
+    }
 }
 
 /// Largest element × patch product the gathering methods will store (≈ 1.6 GB as (u32, f32)).

@@ -6,16 +6,16 @@
 //! Images are processed in parallel (scoped threads, one image each at a time); the
 //! results are merged in image order, so the outcome does not depend on the thread count.
 
-use super::Warnings;
 use super::material::{AlphaMode, MatInfo};
 use super::source::Buffers;
 use super::texture::{self, Pyramid};
+use super::{CANCELLED, Warnings};
 use crate::scene::{Material, Object};
 use glam::{Vec2, Vec3};
 use serde_json::Value;
 use std::path::Path;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// UV triangles of one primitive's kept triangles, for the texture pass.
 pub(super) struct TexJob {
@@ -62,6 +62,7 @@ pub(super) fn apply_textures(
     materials: &[Material],
     objects: &mut [Object],
     warn: &mut Warnings,
+    cancel: &AtomicBool,
 ) -> Result<(), String> {
     let mut by_image: std::collections::BTreeMap<usize, Vec<(usize, Slot)>> = Default::default();
     for (j, job) in jobs.iter().enumerate() {
@@ -80,6 +81,9 @@ pub(super) fn apply_textures(
     // small next to the decoded images.
     let mut work = Vec::new();
     for (image, uses) in by_image {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(CANCELLED.into());
+        }
         let bytes = texture::image_bytes(root, buffers, dir, image);
         if let Some(fatal) = buffers.failure() {
             return Err(fatal);
@@ -98,6 +102,9 @@ pub(super) fn apply_textures(
             let Some((image, uses, bytes)) = work.get(k) else {
                 break;
             };
+            if cancel.load(Ordering::Relaxed) {
+                break;
+            }
             let outcome = match bytes {
                 Ok(b) => Pyramid::decode(b).map(|p| {
                     let mut coverage = Vec::new();
@@ -129,6 +136,9 @@ pub(super) fn apply_textures(
                 s.spawn(worker);
             }
         });
+    }
+    if cancel.load(Ordering::Relaxed) {
+        return Err(CANCELLED.into());
     }
     let mut results = results.into_inner().unwrap_or_default();
     results.sort_by_key(|(image, _)| *image);
