@@ -9,8 +9,21 @@ use std::path::{Path, PathBuf};
 
 /// The layers, bottom first. A module may use modules earlier in this list, never later.
 const LAYERS: &[&str] = &[
-    "geometry", "cancel", "files", "accel", "scene", "light", "mesh", "solver", "export",
-    "pipeline", "analytic", "worker", "view", "cli",
+    "geometry",
+    "cancel",
+    "files",
+    "accel",
+    "scene",
+    "light",
+    "mesh",
+    "solver",
+    "reference",
+    "export",
+    "pipeline",
+    "analytic",
+    "worker",
+    "view",
+    "cli",
 ];
 
 /// Files at the crate root that only declare or start things.

@@ -8,6 +8,7 @@ mod bench;
 pub mod csv;
 pub mod options;
 mod probe;
+mod reference;
 #[cfg(feature = "viewer")]
 mod render;
 mod solve;
@@ -118,6 +119,28 @@ pub enum Command {
         #[command(flatten)]
         options: SolveOptions,
     },
+    /// Unbiased path-traced radiosity at surface points, with its standard error: reads
+    /// x,y,z,nx,ny,nz rows, writes x,y,z,r,g,b,sr,sg,sb.
+    Reference {
+        scene: String,
+        /// CSV with header x,y,z,nx,ny,nz (a point and the outward normal of the side asked about).
+        #[arg(long)]
+        points: PathBuf,
+        /// Output CSV (x,y,z,r,g,b,sr,sg,sb).
+        #[arg(long)]
+        out: PathBuf,
+        /// Target 1-sigma standard error relative to max(B, 2 % of the mean B), per channel.
+        #[arg(long, default_value_t = 0.01)]
+        rel_error: f64,
+        /// Stop after this many seconds even if some points have not reached --rel-error.
+        #[arg(long)]
+        time_limit: Option<f64>,
+        /// Seed of the sample streams (the same seed gives the same values).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[command(flatten)]
+        lights: options::LightOptions,
+    },
     /// Compare methods: error against a reference over time; or ray throughput with --occlusion.
     Bench {
         scene: String,
@@ -146,7 +169,7 @@ pub enum Command {
 /// Loads `spec` (a path or `builtin:NAME`), adds the default sky when it has no light, and
 /// prints its warnings unless `quiet`.
 pub fn load_scene(spec: &str, options: &SolveOptions, quiet: bool) -> Result<Scene> {
-    let scene = crate::scene::open(spec, options.sky, options.sun)?;
+    let scene = crate::scene::open(spec, options.lights.sky, options.lights.sun)?;
     if !quiet {
         for w in &scene.warnings {
             eprintln!("warning: {w}");
@@ -266,6 +289,27 @@ pub fn run(cli: Cli) -> Result<()> {
             out.as_deref(),
             reconstruction,
             &options,
+            quiet,
+        ),
+        Command::Reference {
+            scene,
+            points,
+            out,
+            rel_error,
+            time_limit,
+            seed,
+            lights,
+        } => reference::reference(
+            &scene,
+            &points,
+            &out,
+            &crate::reference::ReferenceSettings {
+                rel_error,
+                time_limit: time_limit.map(Duration::from_secs_f64),
+                seed,
+                ..Default::default()
+            },
+            &lights,
             quiet,
         ),
         Command::Bench {

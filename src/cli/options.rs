@@ -9,6 +9,18 @@ use crate::solver::{Method, SolverSettings};
 use clap::Args;
 use glam::{DVec3, Vec3};
 
+/// The light added to a scene: a uniform sky and a sun (a scene with no light at all gets
+/// a white sky of radiance 1).
+#[derive(Args, Debug, Clone)]
+pub struct LightOptions {
+    /// Uniform sky radiance, W/(m²·sr): one value or r,g,b. Default for scenes without light: 1.
+    #[arg(long, value_parser = parse_rgb)]
+    pub sky: Option<Vec3>,
+    /// Sun: direction towards the sun x,y,z and optionally its irradiance (W/m²), default 3.
+    #[arg(long, value_parser = parse_sun)]
+    pub sun: Option<(DVec3, Vec3)>,
+}
+
 /// Options shared by every command that solves.
 #[derive(Args, Debug, Clone)]
 pub struct SolveOptions {
@@ -36,12 +48,8 @@ pub struct SolveOptions {
     /// and the sun; `--no-shadow-lines` turns it off.
     #[arg(long = "no-shadow-lines", action = clap::ArgAction::SetFalse)]
     pub shadow_lines: bool,
-    /// Uniform sky radiance, W/(m²·sr): one value or r,g,b. Default for scenes without light: 1.
-    #[arg(long, value_parser = parse_rgb)]
-    pub sky: Option<Vec3>,
-    /// Sun: direction towards the sun x,y,z and optionally its irradiance (W/m²), default 3.
-    #[arg(long, value_parser = parse_sun)]
-    pub sun: Option<(DVec3, Vec3)>,
+    #[command(flatten)]
+    pub lights: LightOptions,
     /// Most shadow rays per element–patch form factor.
     #[arg(long, default_value_t = FormFactorSettings::default().max_rays)]
     pub max_rays: u32,
