@@ -1,14 +1,30 @@
-//! The viewer (issue 3): an eframe/egui window over the solver worker, and the wgpu
-//! renderer it shares with `radiosity render` and the screenshot path.
+//! The viewer: an eframe/egui window over the solver worker, and the wgpu renderer it
+//! shares with `radiosity render` and the screenshot path.
 //!
-//! - [`app`]: the window: menus, side panel, the 3D view, picking, live material edits,
-//!   moving objects with undo, the convergence plot.
+//! - [`app`]: the window: [`app::Options`], [`app::run`], the [`app::App`], the worker's
+//!   events, keyboard shortcuts, each frame's order of work.
+//! - `session`: everything of one opened scene, replaced whole when a scene opens.
+//! - `panels`: the menu bar, status bar and side panel (statistics, display, selection,
+//!   solver, convergence plot).
+//! - `viewport`: the 3D view: camera controls, picking, painting the GPU's picture.
+//! - `gpu`: the GPU's copy of the scene (uploads throttled by their cost) and when the 3D
+//!   picture is drawn again.
+//! - `edits`: moving objects with undo and redo, live material edits.
+//! - `files`: dialogs, dropped files, recent files, screenshots, the frame statistics.
+//! - `colour`: the false-colour map and sRGB conversions.
 //! - [`render`]: the offscreen wgpu renderer (colour + depth target, value textures).
 //! - [`camera`]: the orbit camera and picking rays.
 
 pub mod app;
 pub mod camera;
+mod colour;
+mod edits;
+mod files;
+mod gpu;
+mod panels;
 pub mod render;
+mod session;
+mod viewport;
 
 use crate::accel::Bvh;
 use crate::geometry::triangle_cross;
@@ -81,7 +97,7 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     let facing_centre = hits.iter().zip(&dirs).all(|(h, (d, _))| {
         h.as_ref().is_some_and(|h| {
             let t = &mesh.triangles[h.triangle as usize];
-            triangle_cross(&t).dot(*d) < 0.0
+            triangle_cross(t).dot(*d) < 0.0
         })
     });
     if facing_centre {

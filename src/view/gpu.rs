@@ -1,0 +1,241 @@
+//! What the GPU holds and when it draws: the renderer with its offscreen target and egui
+//! texture ([`Gpu`], for the whole window), the opened scene's mesh, snapshot values and
+//! Hermite control points on the GPU ([`Uploads`], per scene), snapshot uploads throttled
+//! by their own measured cost, auto exposure after each upload, and the 3D picture drawn
+//! again only when what it depends on changes.
+
+use super::app::App;
+use super::camera::Camera;
+use super::render::{Display, GpuMesh, Renderer, Target};
+use crate::mesh::{Mesh, Reconstruction};
+use eframe::egui;
+use eframe::egui_wgpu;
+use std::time::{Duration, Instant};
+
+/// The renderer and what it draws into, for the life of the window.
+pub(super) struct Gpu {
+    state: egui_wgpu::RenderState,
+    renderer: Renderer,
+    target: Option<Target>,
+    /// `target` registered with egui.
+    texture: Option<egui::TextureId>,
+    /// What the 3D target shows now: it is drawn again only when this changes.
+    drawn: Option<DrawKey>,
+    /// When the last 3D draw started and what it cost (the interval to the next frame).
+    last_draw: Option<(Instant, Duration)>,
+    draw_started: Option<Instant>,
+}
+
+/// The opened scene on the GPU.
+#[derive(Default)]
+pub(super) struct Uploads {
+    /// The scene's current mesh.
+    mesh: Option<GpuMesh>,
+    /// The snapshot version whose values are on the GPU; 0 while `mesh` has none.
+    pub(super) uploaded: u64,
+    /// The snapshot version whose Hermite control points are on the GPU.
+    bezier: u64,
+    /// What the last snapshot upload cost, and when it ended.
+    cost: Duration,
+    last: Option<Instant>,
+}
+
+/// Everything the 3D picture depends on.
+#[derive(Clone, Copy, PartialEq)]
+struct DrawKey {
+    camera: Camera,
+    display: Display,
+    uploaded: u64,
+    bezier: u64,
+    size: [u32; 2],
+}
+
+impl Gpu {
+    pub(super) fn new(state: egui_wgpu::RenderState) -> Gpu {
+        Gpu {
+            renderer: Renderer::new(&state.device),
+            state,
+            target: None,
+            texture: None,
+            drawn: None,
+            last_draw: None,
+            draw_started: None,
+        }
+    }
+
+    /// The adapter's name and backend.
+    pub(super) fn adapter(&self) -> String {
+        let i = self.state.adapter.get_info();
+        format!("{} ({:?})", i.name, i.backend)
+    }
+
+    /// Draws the 3D picture of `uploads` into a target of `size` pixels when it is due,
+    /// and returns the egui texture that shows the target.
+    ///
+    /// What a person did (camera, size, display choices) is drawn at once, and so are a
+    /// first snapshot and the Hermite data a display choice asked for. What the solver did
+    /// (a new snapshot, and the auto exposure that follows it) waits until the last draw
+    /// has had 4× its cost to itself, so on a slow (software) renderer most frames stay
+    /// cheap while a big scene streams. An unchanged picture is not drawn again.
+    pub(super) fn draw(
+        &mut self,
+        size: [u32; 2],
+        camera: &Camera,
+        display: &Display,
+        uploads: &Uploads,
+    ) -> Option<egui::TextureId> {
+        if self.target.as_ref().is_none_or(|t| t.size != size) {
+            let target = Target::new(&self.state.device, size);
+            let mut r = self.state.renderer.write();
+            match self.texture {
+                Some(id) => r.update_egui_texture_from_wgpu_texture(
+                    &self.state.device,
+                    &target.view,
+                    eframe::wgpu::FilterMode::Linear,
+                    id,
+                ),
+                None => {
+                    self.texture = Some(r.register_native_texture(
+                        &self.state.device,
+                        &target.view,
+                        eframe::wgpu::FilterMode::Linear,
+                    ))
+                }
+            }
+            self.target = Some(target);
+        }
+        let key = DrawKey {
+            camera: *camera,
+            display: *display,
+            uploaded: uploads.uploaded,
+            bezier: uploads.bezier,
+            size,
+        };
+        let urgent = self.drawn.is_none_or(|k| {
+            let mut d = k.display;
+            d.ev = display.ev;
+            d.log_range = display.log_range;
+            k.camera != *camera
+                || k.size != size
+                || d != *display
+                || (k.uploaded == 0) != (uploads.uploaded == 0)
+                || k.bezier != uploads.bezier
+        });
+        // The frame after a draw: the interval since it started is the draw's cost.
+        if let Some(t) = self.draw_started.take() {
+            self.last_draw = Some((t, t.elapsed()));
+        }
+        let due = self
+            .last_draw
+            .is_none_or(|(t, cost)| t.elapsed() >= cost * 4);
+        if let Some(target) = &self.target
+            && self.drawn != Some(key)
+            && (urgent || due)
+        {
+            self.drawn = Some(key);
+            self.draw_started = Some(Instant::now());
+            self.renderer.render(
+                &self.state.device,
+                &self.state.queue,
+                target,
+                if uploads.uploaded > 0 {
+                    uploads.mesh.as_ref()
+                } else {
+                    None
+                },
+                camera,
+                display,
+            );
+        }
+        self.texture
+    }
+}
+
+impl App {
+    /// Puts a new mesh of the opened scene on the GPU. It shows nothing until a snapshot
+    /// for it is uploaded; the snapshot held (for the old mesh) is dropped.
+    pub(super) fn upload_mesh(&mut self, mesh: &Mesh) {
+        let u = &mut self.session.uploads;
+        if let Some(g) = &self.gpu {
+            u.mesh = Some(g.renderer.upload(&g.state.device, mesh));
+        }
+        u.uploaded = 0;
+        u.bezier = 0;
+        self.session.snapshot = None;
+    }
+
+    /// Uploads the newest snapshot unless the last upload was too recent for its cost.
+    pub(super) fn upload(&mut self) {
+        let s = &mut self.session;
+        let Some(snap) = &s.snapshot else { return };
+        let u = &mut s.uploads;
+        if snap.version == u.uploaded {
+            return;
+        }
+        // A fresh GPU mesh has nothing to show: upload at once. Otherwise at most a quarter
+        // of the time goes to uploads.
+        if u.uploaded != 0
+            && let Some(t) = u.last
+            && t.elapsed() < u.cost * 3
+        {
+            return;
+        }
+        let Some(g) = &self.gpu else { return };
+        let Some(gm) = &u.mesh else { return };
+        let start = Instant::now();
+        if gm.set_values(&g.state.queue, &snap.radiosity, &snap.vertex) {
+            u.uploaded = snap.version;
+            // The edit's first snapshot is on the GPU and is drawn this frame.
+            if let Some((t, Some(v))) = s.edits.edit_sent
+                && u.uploaded >= v
+            {
+                s.edits.edit_latency = Some(t.elapsed());
+                s.edits.edit_sent = None;
+            }
+        }
+        u.cost = start.elapsed();
+        u.last = Some(Instant::now());
+        if self.auto_exposure {
+            self.expose();
+        }
+    }
+
+    /// Hermite display needs the control points of the uploaded snapshot: computed here
+    /// when the mode is on and they are missing (the other modes never pay for them).
+    pub(super) fn upload_bezier(&mut self) {
+        let s = &mut self.session;
+        if self.display.reconstruction != Reconstruction::Hermite
+            || s.uploads.uploaded == 0
+            || s.uploads.bezier == s.uploads.uploaded
+        {
+            return;
+        }
+        let (Some(g), Some(snap), Some(mesh)) = (&self.gpu, &s.snapshot, &s.mesh) else {
+            return;
+        };
+        let Some(gm) = &s.uploads.mesh else { return };
+        if !gm.supports_hermite() {
+            self.display.reconstruction = Reconstruction::Gouraud;
+            self.status = "too many elements for Hermite display on this device".into();
+            return;
+        }
+        if snap.version != s.uploads.uploaded || snap.radiosity.len() != mesh.elements.len() {
+            return;
+        }
+        let points = super::render::bezier_points(mesh, &snap.radiosity);
+        if gm.set_bezier(&g.state.queue, &points) {
+            s.uploads.bezier = s.uploads.uploaded;
+        }
+    }
+
+    /// Sets the exposure and the false-colour range from the newest snapshot.
+    fn expose(&mut self) {
+        let s = &self.session;
+        if let (Some(snap), Some(mesh)) = (&s.snapshot, &s.mesh)
+            && let Some((ev, range)) = super::auto_exposure(mesh, &snap.radiosity)
+        {
+            self.display.ev = ev;
+            self.display.log_range = range;
+        }
+    }
+}
