@@ -1,12 +1,14 @@
 //! Scene → mesh → BVH → solver, the sequence the command line and the viewer's worker share.
 
 use crate::accel::Bvh;
+use crate::cancel::{Cancelled, check};
 use crate::light::ExternalLight;
 use crate::mesh::{Mesh, MeshSettings, Reconstruction, Reconstructor};
 use crate::scene::Scene;
 use crate::solver::{Solver, SolverError, SolverSettings};
 use glam::{DVec3, Vec3};
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// A meshed scene with its visibility structure, ready to solve.
@@ -22,15 +24,31 @@ pub struct Prepared {
 impl Prepared {
     /// Meshes `scene` and builds its BVH.
     pub fn new(scene: &Scene, settings: &MeshSettings) -> Prepared {
+        match Prepared::new_cancellable(scene, settings, crate::cancel::never()) {
+            Ok(prepared) => prepared,
+            Err(Cancelled) => unreachable!("the never-raised cancel flag was raised"),
+        }
+    }
+
+    /// [`Prepared::new`], stopped with `Err(Cancelled)` soon after `cancel` is raised:
+    /// meshing looks at it between and inside its stages, and it is looked at before and
+    /// after the BVH build (which cannot be interrupted).
+    pub fn new_cancellable(
+        scene: &Scene,
+        settings: &MeshSettings,
+        cancel: &AtomicBool,
+    ) -> Result<Prepared, Cancelled> {
         let t = Instant::now();
         // Meshing builds the BVH itself when it looks for shadow lines (its time is then
         // in `mesh_seconds`).
-        let (mesh, bvh) = Mesh::build_keeping_bvh(scene, settings);
+        let (mesh, bvh) = Mesh::build_cancellable(scene, settings, cancel)?;
         let mesh_seconds = t.elapsed().as_secs_f64();
+        check(cancel)?;
         let t = Instant::now();
         let bvh = bvh.unwrap_or_else(|| Bvh::build(&mesh.triangles, &mesh.transmittance));
         let bvh_seconds = t.elapsed().as_secs_f64();
-        Prepared {
+        check(cancel)?;
+        Ok(Prepared {
             mesh: Arc::new(mesh),
             bvh: Arc::new(bvh),
             external: ExternalLight {
@@ -39,7 +57,7 @@ impl Prepared {
             },
             mesh_seconds,
             bvh_seconds,
-        }
+        })
     }
 
     /// A solver over this mesh.
@@ -69,4 +87,26 @@ pub fn probe_values(
             None => Vec3::ZERO,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_raised_flag_stops_preparing() {
+        let scene = crate::scene::builtin::by_name("cornell").expect("built-in Cornell box");
+        let raised = AtomicBool::new(true);
+        let settings = MeshSettings::default();
+        assert!(matches!(
+            Prepared::new_cancellable(&scene, &settings, &raised),
+            Err(Cancelled)
+        ));
+        let down = AtomicBool::new(false);
+        let prepared = Prepared::new_cancellable(&scene, &settings, &down).unwrap();
+        assert_eq!(
+            prepared.mesh.elements.len(),
+            Prepared::new(&scene, &settings).mesh.elements.len()
+        );
+    }
 }

@@ -223,6 +223,7 @@ impl Mesh {
             &self.cut_edges,
             self.scale,
         );
+        debug_assert_eq!(self.validate(), Ok(()), "invalid mesh after refinement");
         moved
     }
 }

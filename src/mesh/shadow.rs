@@ -13,10 +13,15 @@
 
 use super::contact::edge_key;
 use crate::accel::Bvh;
+use crate::cancel::{Cancelled, check};
 use crate::geometry::{dtriangle_cross, triangle_cross, triangle_normal};
 use crate::light::Punctual;
 use glam::{DVec3, Vec3};
 use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
+
+/// Silhouette edges, or edge–receiver pairs, traced between two looks at the cancel flag.
+const TASKS_PER_CHECK: usize = 64;
 
 /// Lengths for [`shadow_cuts`]: the scene's diagonal, the contact tolerance, and the
 /// shortest shadow segment split along (shorter ones are left to refinement).
@@ -29,7 +34,9 @@ pub(super) struct Lengths {
 
 /// Shadow-line segments per triangle (for the `receivers`) cast by the opaque triangles
 /// (transmittance below one half) from `lights`. Not deduplicated: the caller merges
-/// them with the contact lines, dropping segments that coincide.
+/// them with the contact lines, dropping segments that coincide. Looks at `cancel` for
+/// every light and every [`TASKS_PER_CHECK`] rays' worth of work, and stops when it is
+/// raised.
 pub(super) fn shadow_cuts(
     triangles: &[[Vec3; 3]],
     transmittance: &[f32],
@@ -37,7 +44,8 @@ pub(super) fn shadow_cuts(
     lights: &[Punctual],
     lengths: &Lengths,
     bvh: &Bvh,
-) -> Vec<Vec<[Vec3; 2]>> {
+    cancel: &AtomicBool,
+) -> Result<Vec<Vec<[Vec3; 2]>>, Cancelled> {
     use rayon::prelude::*;
     let Lengths {
         scale,
@@ -62,10 +70,11 @@ pub(super) fn shadow_cuts(
     let eps = scale * 1e-5;
     let far = scale * 4.0;
     for light in lights {
+        check(cancel)?;
         let towards = |p: Vec3| light.towards(p);
         let facing = |i: u32| {
             let t = &triangles[i as usize];
-            let nrm = triangle_cross(&t);
+            let nrm = triangle_cross(t);
             let c = (t[0] + t[1] + t[2]) / 3.0;
             nrm.dot(towards(c)) > 0.0
         };
@@ -90,48 +99,56 @@ pub(super) fn shadow_cuts(
             )
         });
         let away = |p: Vec3| -towards(p).normalize_or_zero();
+        let landings = |&([a, b], own): &([Vec3; 2], u32)| {
+            let steps = (((b - a).length() / min_len).ceil() as usize).clamp(1, 256);
+            let mut seen: Vec<u32> = Vec::new();
+            for k in 0..steps {
+                let p = a + (b - a) * ((k as f32 + 0.5) / steps as f32);
+                let d = away(p);
+                if let Some(h) = bvh.closest_hit(p, d, eps, f32::INFINITY, own)
+                    && receivers.get(h.triangle as usize) == Some(&true)
+                    && !seen.contains(&h.triangle)
+                {
+                    seen.push(h.triangle);
+                }
+            }
+            seen.into_iter().map(move |r| ([a, b], r))
+        };
         let tasks: Vec<([Vec3; 2], u32)> = silhouettes
-            .par_iter()
-            .with_min_len(64)
-            .flat_map_iter(|&([a, b], own)| {
-                let steps = (((b - a).length() / min_len).ceil() as usize).clamp(1, 256);
-                let mut seen: Vec<u32> = Vec::new();
-                for k in 0..steps {
-                    let p = a + (b - a) * ((k as f32 + 0.5) / steps as f32);
-                    let d = away(p);
-                    if let Some(h) = bvh.closest_hit(p, d, eps, f32::INFINITY, own)
-                        && receivers.get(h.triangle as usize) == Some(&true)
-                        && !seen.contains(&h.triangle)
-                    {
-                        seen.push(h.triangle);
-                    }
-                }
-                seen.into_iter().map(move |r| ([a, b], r))
+            .par_chunks(TASKS_PER_CHECK)
+            .map(|chunk| {
+                check(cancel)?;
+                Ok(chunk.iter().flat_map(landings).collect::<Vec<_>>())
             })
-            .collect();
+            .collect::<Result<Vec<_>, Cancelled>>()?
+            .concat();
         let visible = |p: Vec3, own: u32| light.visible(bvh, p, [own, u32::MAX], far);
+        let jump = |&(edge, i): &([Vec3; 2], u32)| {
+            let r = &triangles[i as usize];
+            let nrm = triangle_normal(r);
+            let [a, b] = project(r, edge, *light, tol, min_len)?;
+            let m = (a + b) * 0.5;
+            if nrm.dot(towards(m)) <= 0.0 {
+                return None; // the receiver's back: no direct light to jump
+            }
+            // Either side of the midpoint, in the receiver's plane.
+            let side = nrm.cross(b - a).normalize_or_zero() * (min_len * 0.05).max(eps);
+            let lift = nrm * eps;
+            (visible(m + side + lift, i) != visible(m - side + lift, i)).then_some((i, [a, b]))
+        };
         let found: Vec<(u32, [Vec3; 2])> = tasks
-            .par_iter()
-            .with_min_len(64)
-            .filter_map(|&(edge, i)| {
-                let r = &triangles[i as usize];
-                let nrm = triangle_normal(&r);
-                let [a, b] = project(r, edge, *light, tol, min_len)?;
-                let m = (a + b) * 0.5;
-                if nrm.dot(towards(m)) <= 0.0 {
-                    return None; // the receiver's back: no direct light to jump
-                }
-                // Either side of the midpoint, in the receiver's plane.
-                let side = nrm.cross(b - a).normalize_or_zero() * (min_len * 0.05).max(eps);
-                let lift = nrm * eps;
-                (visible(m + side + lift, i) != visible(m - side + lift, i)).then_some((i, [a, b]))
+            .par_chunks(TASKS_PER_CHECK)
+            .map(|chunk| {
+                check(cancel)?;
+                Ok(chunk.iter().filter_map(jump).collect::<Vec<_>>())
             })
-            .collect();
+            .collect::<Result<Vec<_>, Cancelled>>()?
+            .concat();
         for (i, s) in found {
             cuts[i as usize].push(s);
         }
     }
-    cuts
+    Ok(cuts)
 }
 
 /// The shadow of `edge` from `light` on the plane of triangle `r`, clipped to `r`; `None`
