@@ -6,22 +6,18 @@
 //! Truth: the dense direct solve of the discrete system on the very mesh refinement
 //! produced; brute-force search for T-vertices.
 
+mod common;
+use common::{converge, prepared, rms};
 use glam::Vec3;
-use radiosity::mesh::{AdaptiveSettings, Mesh, MeshSettings};
+use radiosity::mesh::{AdaptiveSettings, Mesh};
 use radiosity::pipeline::Prepared;
 use radiosity::scene::builtin;
-use radiosity::solver::{Method, Solver, SolverSettings, StepOutcome};
+use radiosity::solver::{Method, Solver, SolverSettings};
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
-fn prepared() -> Prepared {
-    Prepared::new(
-        &builtin::cornell_box(),
-        &MeshSettings {
-            max_elements: Some(500),
-            ..Default::default()
-        },
-    )
+/// The Cornell box meshed coarsely (at most 500 elements), for refinement to work on.
+fn cornell() -> Prepared {
+    prepared(&builtin::cornell_box(), 500)
 }
 
 fn adaptive(method: Method) -> SolverSettings {
@@ -34,13 +30,6 @@ fn adaptive(method: Method) -> SolverSettings {
         }),
         ..Default::default()
     }
-}
-
-fn converge(s: &mut Solver) {
-    assert_eq!(
-        s.run(None, &AtomicBool::new(false)).unwrap(),
-        StepOutcome::Converged
-    );
 }
 
 /// The direct solve on `mesh` (no refinement).
@@ -59,18 +48,9 @@ fn direct_on(p: &Prepared, mesh: &Arc<Mesh>) -> Vec<Vec3> {
     s.radiosity()
 }
 
-fn rms(a: &[Vec3], b: &[Vec3], mesh: &Mesh) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for ((x, y), e) in a.iter().zip(b).zip(&mesh.elements) {
-        num += (*x - *y).as_dvec3().length_squared() * e.area as f64;
-        den += y.as_dvec3().length_squared() * e.area as f64;
-    }
-    (num / den).sqrt()
-}
-
 #[test]
 fn refinement_keeps_the_solve_exact_on_the_refined_mesh() {
-    let p = prepared();
+    let p = cornell();
     for method in [Method::Progressive, Method::GaussSeidel] {
         let mut s = p.solver(adaptive(method)).unwrap();
         converge(&mut s);
@@ -95,7 +75,7 @@ fn refinement_keeps_the_solve_exact_on_the_refined_mesh() {
 
 #[test]
 fn no_element_is_made_smaller_than_the_minimum() {
-    let p = prepared();
+    let p = cornell();
     let min_size = p.mesh.element_size / 4.0;
     let mut settings = adaptive(Method::Progressive);
     settings.adaptive = Some(AdaptiveSettings {
@@ -125,7 +105,7 @@ fn no_element_is_made_smaller_than_the_minimum() {
 
 #[test]
 fn refinement_is_deterministic() {
-    let p = prepared();
+    let p = cornell();
     let run = || {
         let mut s = p.solver(adaptive(Method::Progressive)).unwrap();
         converge(&mut s);
@@ -139,7 +119,7 @@ fn refinement_is_deterministic() {
 
 #[test]
 fn every_t_vertex_takes_its_value_from_the_coarse_edge() {
-    let p = prepared();
+    let p = cornell();
     let mut s = p.solver(adaptive(Method::Progressive)).unwrap();
     converge(&mut s);
     let mesh = s.mesh();

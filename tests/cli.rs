@@ -1,22 +1,54 @@
 //! The command-line contract (the README's "Command line"): outputs, exit status, and bad input.
 
-use std::path::PathBuf;
+mod common;
+use common::scratch_dir;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_radiosity"))
 }
 
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("radiosity-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// Where `radiosity probe` writes its values.
+enum To {
+    /// `--out` this file.
+    File(PathBuf),
+    Stdout,
+}
+
+/// Runs `radiosity probe scene --quiet` at the points of `points_csv` (written to a file
+/// in `dir`), fails the test unless it succeeds and answers with the header
+/// `x,y,z,r,g,b`, and returns the rows as numbers.
+fn probe(dir: &Path, scene: &str, points_csv: &str, to: To) -> Vec<Vec<f64>> {
+    let points = dir.join("points.csv");
+    std::fs::write(&points, points_csv).unwrap();
+    let mut command = bin();
+    command
+        .args(["probe", scene, "--quiet", "--points"])
+        .arg(&points);
+    if let To::File(out) = &to {
+        command.arg("--out").arg(out);
+    }
+    let out = command.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = match &to {
+        To::File(path) => std::fs::read_to_string(path).unwrap(),
+        To::Stdout => String::from_utf8(out.stdout).unwrap(),
+    };
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,r,g,b"));
+    lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect()
 }
 
 #[test]
 fn solve_writes_stats_and_a_baked_glb() {
-    let d = temp_dir("solve");
+    let d = scratch_dir("cli-solve");
     let out = bin()
         .args(["solve", "builtin:cornell", "--quiet", "--stats"])
         .arg(d.join("stats.json"))
@@ -58,31 +90,13 @@ fn probe_matches_the_white_furnace_closed_form() {
     // furnace-cube: ρ = 0.5, E = 1, so B = E/(1−ρ) = 2 everywhere (closed enclosure). The
     // default tolerance leaves 1e-3 of the source unshot: ≤ 0.5·1e-3 mean relative error,
     // concentrated at most a few times locally, so 1 % is a safe bound at any point.
-    let d = temp_dir("probe");
-    let points = d.join("points.csv");
-    std::fs::write(
-        &points,
+    let d = scratch_dir("cli-probe");
+    let rows = probe(
+        &d,
+        "builtin:furnace-cube",
         "x,y,z,nx,ny,nz\n0.5,0,0.5,0,1,0\n0.1,0.9,0.2,0,1,0\n0.001,0.5,0.999,1,0,0\n0.5,1,0.5,0,-1,0\n",
-    )
-    .unwrap();
-    let out = bin()
-        .args(["probe", "builtin:furnace-cube", "--quiet", "--points"])
-        .arg(&points)
-        .arg("--out")
-        .arg(d.join("values.csv"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        To::File(d.join("values.csv")),
     );
-    let text = std::fs::read_to_string(d.join("values.csv")).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,z,r,g,b"));
-    let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
-        .collect();
     assert_eq!(rows.len(), 4);
     for (i, r) in rows.iter().enumerate() {
         // Row 1 asks about the floor (y = 0) from above: B = 2. Row 2 asks for a point at
@@ -97,25 +111,13 @@ fn probe_matches_the_white_furnace_closed_form() {
 #[test]
 fn probe_sees_colour_bleeding_in_the_cornell_box() {
     // Floor points near the red wall (x ≈ 0.5) must be redder than near the green one.
-    let d = temp_dir("bleed");
-    let points = d.join("points.csv");
-    std::fs::write(
-        &points,
+    let d = scratch_dir("cli-bleed");
+    let rows = probe(
+        &d,
+        "builtin:cornell",
         "x,y,z,nx,ny,nz\n0.50,0,0.1,0,1,0\n0.05,0,0.1,0,1,0\n",
-    )
-    .unwrap();
-    let out = bin()
-        .args(["probe", "builtin:cornell", "--quiet", "--points"])
-        .arg(&points)
-        .output()
-        .unwrap();
-    assert!(out.status.success());
-    let text = String::from_utf8(out.stdout).unwrap();
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
-        .collect();
+        To::Stdout,
+    );
     let (near_red, near_green) = (&rows[0], &rows[1]);
     assert!(
         near_red[3] / near_red[4] > near_green[3] / near_green[4],
@@ -129,7 +131,7 @@ fn probe_sees_colour_bleeding_in_the_cornell_box() {
 
 #[test]
 fn bad_input_exits_1_with_one_message_and_no_output_file() {
-    let d = temp_dir("bad");
+    let d = scratch_dir("cli-bad");
     let missing = d.join("no such scene.gltf");
     let out = bin()
         .args(["solve"])
@@ -173,7 +175,7 @@ fn bad_input_exits_1_with_one_message_and_no_output_file() {
 
 #[test]
 fn bench_writes_curves_for_every_method() {
-    let d = temp_dir("bench");
+    let d = scratch_dir("cli-bench");
     let out = bin()
         .args([
             "bench",

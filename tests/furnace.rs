@@ -3,12 +3,11 @@
 //! exactly, for the continuous problem and for any discretisation whose form factors are
 //! exact point-to-polygon values (ours, unoccluded in a convex enclosure).
 
+mod common;
+use common::{converge, prepared, settings};
 use glam::DVec3;
-use radiosity::mesh::MeshSettings;
-use radiosity::pipeline::Prepared;
 use radiosity::scene::{Scene, builtin};
-use radiosity::solver::{Method, SolverSettings, StepOutcome};
-use std::sync::atomic::AtomicBool;
+use radiosity::solver::Method;
 
 fn solve(
     scene: &Scene,
@@ -16,22 +15,9 @@ fn solve(
     tolerance: f64,
     max_elements: usize,
 ) -> (Vec<f32>, Vec<f64>, radiosity::solver::Stats) {
-    let prepared = Prepared::new(
-        scene,
-        &MeshSettings {
-            max_elements: Some(max_elements),
-            ..Default::default()
-        },
-    );
-    let mut solver = prepared
-        .solver(SolverSettings {
-            method,
-            tolerance,
-            ..Default::default()
-        })
-        .unwrap();
-    let outcome = solver.run(None, &AtomicBool::new(false)).unwrap();
-    assert_eq!(outcome, StepOutcome::Converged);
+    let prepared = prepared(scene, max_elements);
+    let mut solver = prepared.solver(settings(method, tolerance)).unwrap();
+    converge(&mut solver);
     let b = solver.radiosity().iter().map(|b| b.x).collect();
     let areas = prepared
         .mesh

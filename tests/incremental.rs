@@ -6,31 +6,21 @@
 //! factors and their deterministic ray seeds do not depend on materials, so both sides
 //! solve the same discrete system).
 
+mod common;
+use common::{converge, prepared, rms, settings};
 use glam::Vec3;
-use radiosity::mesh::{MeshSettings, surface_values};
+use radiosity::mesh::surface_values;
 use radiosity::pipeline::Prepared;
 use radiosity::scene::{Scene, builtin};
-use radiosity::solver::{Method, PatchEdit, Solver, SolverSettings, StepOutcome};
+use radiosity::solver::{Method, PatchEdit};
 use std::sync::atomic::AtomicBool;
 
 const WHITE: u32 = 0;
 const RED: u32 = 1;
 const LIGHT: u32 = 3;
 
-fn mesh_settings() -> MeshSettings {
-    MeshSettings {
-        max_elements: Some(600),
-        ..Default::default()
-    }
-}
-
-fn settings(method: Method, tolerance: f64) -> SolverSettings {
-    SolverSettings {
-        method,
-        tolerance,
-        ..Default::default()
-    }
-}
+/// The mesh size of every solve here (edits must not change the mesh).
+const ELEMENTS: usize = 600;
 
 /// The patch edits that give every patch of `material` the scene's (edited) values, as the
 /// viewer's worker computes them.
@@ -56,7 +46,7 @@ fn edits(scene: &Scene, p: &Prepared, material: u32) -> Vec<PatchEdit> {
 }
 
 fn exact(scene: &Scene, elements: usize) -> Vec<Vec3> {
-    let p = Prepared::new(scene, &mesh_settings());
+    let p = prepared(scene, ELEMENTS);
     assert_eq!(
         p.mesh.elements.len(),
         elements,
@@ -65,23 +55,6 @@ fn exact(scene: &Scene, elements: usize) -> Vec<Vec3> {
     let mut s = p.solver(settings(Method::Direct, 0.0)).unwrap();
     s.run(None, &AtomicBool::new(false)).unwrap();
     s.radiosity()
-}
-
-fn converge(s: &mut Solver) {
-    assert_eq!(
-        s.run(None, &AtomicBool::new(false)).unwrap(),
-        StepOutcome::Converged
-    );
-}
-
-/// Area-weighted relative RMS difference.
-fn rms(a: &[Vec3], b: &[Vec3], p: &Prepared) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for ((x, y), e) in a.iter().zip(b).zip(&p.mesh.elements) {
-        num += (*x - *y).as_dvec3().length_squared() * e.area as f64;
-        den += y.as_dvec3().length_squared() * e.area as f64;
-    }
-    (num / den).sqrt()
 }
 
 /// Tolerance for "equal to the direct solve": the methods stop at 1e-6 of the source power
@@ -98,7 +71,7 @@ fn an_edit_after_convergence_reaches_the_edited_scenes_answer() {
         Method::Direct,
     ] {
         let mut scene = builtin::cornell_box();
-        let p = Prepared::new(&scene, &mesh_settings());
+        let p = prepared(&scene, ELEMENTS);
         let mut s = p.solver(settings(method, 1e-6)).unwrap();
         converge(&mut s);
         let before = s.radiosity();
@@ -111,13 +84,13 @@ fn an_edit_after_convergence_reaches_the_edited_scenes_answer() {
         assert!(!s.is_converged(), "{method}: an edit must reopen the solve");
         converge(&mut s);
         let truth = exact(&scene, p.mesh.elements.len());
-        let err = rms(&s.radiosity(), &truth, &p);
+        let err = rms(&s.radiosity(), &truth, &p.mesh);
         assert!(
             err < AGREE,
             "{method}: RMS difference to the edited direct solve {err:e}"
         );
         assert!(
-            rms(&before, &truth, &p) > 0.1,
+            rms(&before, &truth, &p.mesh) > 0.1,
             "{method}: the edit changed too little to test"
         );
     }
@@ -130,7 +103,7 @@ fn an_edit_in_mid_solve_from_black_is_exact() {
     // tracks. The edit arrives after a few shots, with most energy still unshot.
     let mut scene = builtin::cornell_box();
     scene.materials[WHITE as usize].reflectance = Vec3::ZERO;
-    let p = Prepared::new(&scene, &mesh_settings());
+    let p = prepared(&scene, ELEMENTS);
     let mut s = p.solver(settings(Method::Progressive, 1e-6)).unwrap();
     let cancel = AtomicBool::new(false);
     while s.stats().iterations < 5 {
@@ -140,7 +113,7 @@ fn an_edit_in_mid_solve_from_black_is_exact() {
     s.edit_patches(&edits(&scene, &p, WHITE));
     converge(&mut s);
     let truth = exact(&scene, p.mesh.elements.len());
-    let err = rms(&s.radiosity(), &truth, &p);
+    let err = rms(&s.radiosity(), &truth, &p.mesh);
     assert!(
         err < AGREE,
         "RMS difference to the edited direct solve {err:e}"
@@ -151,7 +124,7 @@ fn an_edit_in_mid_solve_from_black_is_exact() {
 fn turning_the_light_off_shoots_the_light_back_out() {
     // Negative unshot energy: every element must return to zero (no other source).
     let mut scene = builtin::cornell_box();
-    let p = Prepared::new(&scene, &mesh_settings());
+    let p = prepared(&scene, ELEMENTS);
     let mut s = p.solver(settings(Method::Progressive, 1e-6)).unwrap();
     converge(&mut s);
     let peak = s
@@ -177,7 +150,7 @@ fn an_emission_only_edit_scales_the_answer_linearly() {
     // With reflectances fixed, B is linear in E: doubling the only emitter doubles every B.
     // An independent check that needs no reference solve.
     let mut scene = builtin::cornell_box();
-    let p = Prepared::new(&scene, &mesh_settings());
+    let p = prepared(&scene, ELEMENTS);
     let mut s = p.solver(settings(Method::Progressive, 1e-7)).unwrap();
     converge(&mut s);
     let before = s.radiosity();
@@ -185,6 +158,6 @@ fn an_emission_only_edit_scales_the_answer_linearly() {
     s.edit_patches(&edits(&scene, &p, LIGHT));
     converge(&mut s);
     let doubled: Vec<Vec3> = before.iter().map(|b| *b * 2.0).collect();
-    let err = rms(&s.radiosity(), &doubled, &p);
+    let err = rms(&s.radiosity(), &doubled, &p.mesh);
     assert!(err < AGREE, "RMS difference to 2 × before: {err:e}");
 }

@@ -12,14 +12,13 @@
 //! to the minimum size, so points a couple of minimum sizes from the edge come out right.
 
 mod common;
-use common::{floor, quad};
+use common::{converge, floor, quad};
 use glam::{DMat4, DVec3, Vec3};
 use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
 use radiosity::pipeline::probe_values;
 use radiosity::scene::{Light, Material, Object, Scene};
-use radiosity::solver::{SolverSettings, StepOutcome};
-use std::sync::atomic::AtomicBool;
+use radiosity::solver::SolverSettings;
 
 const RHO: f32 = 0.5;
 const HALF: f64 = 0.2; // block half-width, m
@@ -114,10 +113,7 @@ fn errors(run: Run) -> (f64, f64, usize) {
             ..Default::default()
         })
         .unwrap();
-    assert_eq!(
-        s.run(None, &AtomicBool::new(false)).unwrap(),
-        StepOutcome::Converged
-    );
+    converge(&mut s);
     let b = s.radiosity();
     let lum = |v: Vec3| v.x as f64; // grey: every channel is the same
     let exact = RHO as f64;

@@ -16,11 +16,13 @@
 //! summed over the two rectangles left and right of the point; checked here against
 //! brute-force quadrature as well.
 
+mod common;
+use common::quad_object;
 use glam::{DMat4, DVec3, Vec3};
 use radiosity::mesh::{MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
 use radiosity::pipeline::probe_values;
-use radiosity::scene::{Material, Object, Scene};
+use radiosity::scene::{Material, Scene};
 use radiosity::solver::{Method, SolverSettings};
 use std::f64::consts::PI;
 use std::sync::atomic::AtomicBool;
@@ -43,20 +45,6 @@ fn exact(px: f64, pz: f64) -> f64 {
         - corner(HALF - px, -HALF - pz, GAP)
         + corner(-HALF - px, -HALF - pz, GAP);
     RHO * PI * f
-}
-
-/// A one-material square (two triangles) with these corners, counter-clockwise seen from
-/// the side it faces.
-fn quad(name: &str, corners: [Vec3; 4], material: u32) -> Object {
-    let mut o = Object {
-        name: name.into(),
-        world_from_local: DMat4::IDENTITY,
-        ..Default::default()
-    };
-    o.positions = corners.to_vec();
-    o.triangles = vec![[0, 1, 2], [0, 2, 3]];
-    o.triangle_material = vec![material, material];
-    o
 }
 
 /// Solves `scene` with 0.05 m elements and returns the worst relative error against
@@ -105,16 +93,17 @@ fn worst_errors(
 fn scene() -> Scene {
     let h = HALF as f32;
     let y = GAP as f32;
-    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
     // The receiver faces +y, the emitter −y.
-    let receiver = quad(
+    let receiver = quad_object(
         "receiver",
-        [c(-h, 0.0, -h), c(-h, 0.0, h), c(h, 0.0, h), c(h, 0.0, -h)],
+        DMat4::IDENTITY,
+        [[-h, 0.0, -h], [-h, 0.0, h], [h, 0.0, h], [h, 0.0, -h]],
         0,
     );
-    let emitter = quad(
+    let emitter = quad_object(
         "emitter",
-        [c(-h, y, -h), c(h, y, -h), c(h, y, h), c(-h, y, h)],
+        DMat4::IDENTITY,
+        [[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, h]],
         1,
     );
     Scene {
@@ -209,16 +198,17 @@ fn exact_perpendicular(px: f64, pz: f64) -> f64 {
 fn perpendicular_scene() -> Scene {
     let h = HALF as f32;
     let w = WALL as f32;
-    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
     // The floor faces +y, the wall +z.
-    let floor = quad(
+    let floor = quad_object(
         "floor",
-        [c(-h, 0.0, 0.0), c(-h, 0.0, w), c(h, 0.0, w), c(h, 0.0, 0.0)],
+        DMat4::IDENTITY,
+        [[-h, 0.0, 0.0], [-h, 0.0, w], [h, 0.0, w], [h, 0.0, 0.0]],
         0,
     );
-    let wall = quad(
+    let wall = quad_object(
         "wall",
-        [c(-h, 0.0, 0.0), c(h, 0.0, 0.0), c(h, w, 0.0), c(-h, w, 0.0)],
+        DMat4::IDENTITY,
+        [[-h, 0.0, 0.0], [h, 0.0, 0.0], [h, w, 0.0], [-h, w, 0.0]],
         1,
     );
     Scene {

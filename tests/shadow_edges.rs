@@ -17,14 +17,13 @@
 //! asks.
 
 mod common;
-use common::{floor, quad};
+use common::{converge, floor, quad};
 use glam::{DMat4, DVec2, DVec3, Vec3};
 use radiosity::mesh::{AdaptiveSettings, MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
 use radiosity::pipeline::probe_values;
 use radiosity::scene::{Light, Material, Object, Scene};
-use radiosity::solver::{SolverSettings, StepOutcome};
-use std::sync::atomic::AtomicBool;
+use radiosity::solver::SolverSettings;
 
 const RHO: f64 = 0.5;
 const HALF: f64 = 0.2; // occluder half-width, m
@@ -192,10 +191,7 @@ fn solve_and_probe(
             ..Default::default()
         })
         .unwrap();
-    assert_eq!(
-        s.run(None, &AtomicBool::new(false)).unwrap(),
-        StepOutcome::Converged
-    );
+    converge(&mut s);
     let b = s.radiosity();
     // A grid every 2–3 mm over the shadow and 15 cm around it.
     let (centre, half) = lamp.shadow();

@@ -3,6 +3,8 @@
 //! error of its own); cancel by opening another scene; stale job ids; errors and bad files
 //! become `Failed` and the worker lives on; pause, resume and settings changes.
 
+mod common;
+use common::scratch_dir;
 use radiosity::mesh::MeshSettings;
 use radiosity::pipeline::Prepared;
 use radiosity::scene::builtin;
@@ -186,11 +188,38 @@ fn pause_stops_snapshots_and_new_settings_restart_the_solve() {
     worker.send(load(1, "builtin:cornell", slow));
     until(&worker, |e| matches!(e, Event::Snapshot { .. }));
     worker.send(Command::Pause);
-    // Let in-flight events arrive, then nothing more while paused.
-    std::thread::sleep(Duration::from_millis(300));
-    worker.drain();
-    std::thread::sleep(Duration::from_millis(300));
-    assert!(worker.drain().is_empty(), "events while paused");
+    // The worker takes commands in order, so once the export that follows the pause has
+    // answered, the pause has taken effect and every event sent before it has arrived.
+    let dir = scratch_dir("worker-pause");
+    worker.send(Command::Export {
+        path: dir.join("fence.glb"),
+    });
+    until(&worker, |e| matches!(e, Event::Exported { .. }));
+    // From here on, a snapshot comes only when asked for: turning the ambient term on
+    // (it already is) sends one at once, with the solve's iteration count.
+    let ask = || {
+        worker.send(Command::SetAmbient(true));
+        let events = until(&worker, |e| matches!(e, Event::Snapshot { .. }));
+        let [Event::Snapshot { stats, .. }] = &events[..] else {
+            panic!("{} events while paused, not one snapshot", events.len());
+        };
+        stats.iterations
+    };
+    let before = ask();
+    // Over a window, nothing may arrive and the solve may not advance. No false failure: a
+    // paused worker blocks waiting for a command, so it sends nothing and does not step
+    // however long the window or however loaded the machine. No false pass for a worker
+    // that ignored the pause: it steps without pause and sends a snapshot at least every
+    // few tens of milliseconds, so in 500 ms both checks see it, unless the machine gives
+    // its thread no time at all for the whole window; that would hide the fault in one
+    // loaded run only, never pass it everywhere.
+    let window = Duration::from_millis(500);
+    if let Some(e) = worker.recv_timeout(window) {
+        let shown: String = format!("{e:?}").chars().take(120).collect();
+        panic!("event while paused: {shown}…");
+    }
+    assert_eq!(ask(), before, "the paused solve advanced");
+    let _ = std::fs::remove_dir_all(&dir);
     // New settings restart the solve (iterations start over) and it converges.
     worker.send(Command::SetSettings(SolverSettings {
         tolerance: 1e-3,
@@ -326,8 +355,7 @@ fn moving_an_object_meshes_again_and_keeps_material_edits() {
 
 #[test]
 fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
-    let dir = std::env::temp_dir().join(format!("radiosity-export-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch_dir("worker-export");
     let opened = dir.join("cornell.gltf");
     std::fs::write(&opened, builtin::cornell_box_gltf()).unwrap();
     let original = std::fs::read(&opened).unwrap();

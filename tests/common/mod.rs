@@ -1,9 +1,23 @@
-//! Scene pieces shared by the integration tests that build their scenes in code.
+//! Helpers shared by the integration tests: scene pieces built in code, the usual
+//! preparation and solve, the area-weighted RMS difference, the point-to-polygon form factor
+//! and its rounding, scratch folders and the test-scene corpus.
+//!
+//! Every test file that uses them declares `mod common;` and so compiles its own copy of
+//! this module, using only some of it. Each item therefore carries `#[allow(dead_code)]`:
+//! an item is unused in some test binaries and used in others, and the lint, which looks at
+//! one binary at a time, cannot tell.
 
 use glam::{DMat4, Vec3};
-use radiosity::scene::Object;
+use radiosity::mesh::{Mesh, MeshSettings};
+use radiosity::pipeline::Prepared;
+use radiosity::scene::{Object, Scene};
+use radiosity::solver::form_factor::point_to_polygon;
+use radiosity::solver::{Method, Solver, SolverSettings, StepOutcome};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 
 /// Appends the quad `v` (two triangles, the winding of `v`) with `material` to `o`.
+#[allow(dead_code)]
 pub fn quad(o: &mut Object, v: [[f32; 3]; 4], material: u32) {
     let base = o.positions.len() as u32;
     o.positions.extend(v.iter().map(|p| Vec3::from(*p)));
@@ -12,16 +26,27 @@ pub fn quad(o: &mut Object, v: [[f32; 3]; 4], material: u32) {
     o.triangle_material.extend([material, material]);
 }
 
-/// A 2 m square floor at y = 0 facing +y (counter-clockwise seen from above), of material
-/// 0, placed by `world_from_local`.
-pub fn floor(world_from_local: DMat4) -> Object {
-    let mut floor = Object {
-        name: "floor".into(),
+/// An object named `name`, placed by `world_from_local`, that is the one quad `v` (two
+/// triangles, the winding of `v`: counter-clockwise seen from the side it faces) of
+/// `material`.
+#[allow(dead_code)]
+pub fn quad_object(name: &str, world_from_local: DMat4, v: [[f32; 3]; 4], material: u32) -> Object {
+    let mut o = Object {
+        name: name.into(),
         world_from_local,
         ..Default::default()
     };
-    quad(
-        &mut floor,
+    quad(&mut o, v, material);
+    o
+}
+
+/// A 2 m square floor at y = 0 facing +y (counter-clockwise seen from above), of material
+/// 0, placed by `world_from_local`.
+#[allow(dead_code)]
+pub fn floor(world_from_local: DMat4) -> Object {
+    quad_object(
+        "floor",
+        world_from_local,
         [
             [-1.0, 0.0, -1.0],
             [-1.0, 0.0, 1.0],
@@ -29,6 +54,105 @@ pub fn floor(world_from_local: DMat4) -> Object {
             [1.0, 0.0, -1.0],
         ],
         0,
+    )
+}
+
+/// `scene` meshed with the default settings but at most `max_elements` elements.
+#[allow(dead_code)]
+pub fn prepared(scene: &Scene, max_elements: usize) -> Prepared {
+    Prepared::new(
+        scene,
+        &MeshSettings {
+            max_elements: Some(max_elements),
+            ..Default::default()
+        },
+    )
+}
+
+/// The default solver settings with `method`, stopping at `tolerance`.
+#[allow(dead_code)]
+pub fn settings(method: Method, tolerance: f64) -> SolverSettings {
+    SolverSettings {
+        method,
+        tolerance,
+        ..Default::default()
+    }
+}
+
+/// Runs `s` to the end and fails the test unless it converged (rather than being
+/// cancelled or stopped).
+#[allow(dead_code)]
+pub fn converge(s: &mut Solver) {
+    assert_eq!(
+        s.run(None, &AtomicBool::new(false)).unwrap(),
+        StepOutcome::Converged
     );
-    floor
+}
+
+/// Area-weighted relative RMS difference of the per-element values `a` from the reference
+/// `b` on `mesh`: √(Σ Aᵢ |aᵢ − bᵢ|² / Σ Aᵢ |bᵢ|²).
+#[allow(dead_code)]
+pub fn rms(a: &[Vec3], b: &[Vec3], mesh: &Mesh) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((x, y), e) in a.iter().zip(b).zip(&mesh.elements) {
+        num += (*x - *y).as_dvec3().length_squared() * e.area as f64;
+        den += y.as_dvec3().length_squared() * e.area as f64;
+    }
+    (num / den).sqrt()
+}
+
+/// Relative error of one f32 form factor plus f64 summation: a few ulps of f32.
+/// `point_to_polygon` evaluates Lambert's contour integral in f64 and returns f32, so a
+/// single value carries a relative error of about 2⁻²⁴ ≈ 6e-8; sums of a few hundred such
+/// values in f64 stay within 1e-6 relative.
+#[allow(dead_code)]
+pub const F32_REL: f64 = 1e-6;
+
+/// The form factor from a point `p` with normal `n` to the polygon `poly`
+/// (`point_to_polygon`, Lambert's contour integral), as f64.
+#[allow(dead_code)]
+pub fn ptp(p: Vec3, n: Vec3, poly: &[Vec3]) -> f64 {
+    point_to_polygon(p, n, poly) as f64
+}
+
+/// An empty scratch folder for one test: `name` under the system's temporary folder,
+/// qualified by this process's id (so concurrent runs do not meet), emptied if a
+/// previous run left it.
+#[allow(dead_code)]
+pub fn scratch_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("radiosity-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The test-scene corpus `../shared/scenes` beside the repository (see its CATALOGUE.md
+/// and VALIDATION.tsv). When it is missing: `None`, with a note on stderr, so that the test
+/// can skip; but under CI (the `CI` environment variable set, to any value) the test fails
+/// instead, so that a CI run without the corpus cannot pass by skipping.
+#[allow(dead_code)]
+pub fn shared_scenes() -> Option<PathBuf> {
+    let ci = std::env::var_os("CI").is_some();
+    scenes_at(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"),
+        ci,
+    )
+}
+
+/// [`shared_scenes`] for the corpus folder `dir`: `Some(dir)` if it holds VALIDATION.tsv;
+/// otherwise a panic if `ci`, else `None` with a note on stderr.
+#[allow(dead_code)]
+pub fn scenes_at(dir: &Path, ci: bool) -> Option<PathBuf> {
+    if dir.join("VALIDATION.tsv").is_file() {
+        Some(dir.to_path_buf())
+    } else if ci {
+        panic!(
+            "the test scenes are not at {} and CI is set: under CI a test that needs them \
+             fails instead of skipping (unset CI to skip)",
+            dir.display()
+        );
+    } else {
+        eprintln!("skipped: the test scenes are not at {}", dir.display());
+        None
+    }
 }
