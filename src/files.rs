@@ -5,19 +5,19 @@ use std::path::Path;
 
 /// Why an output file could not be written. Its `Display` names the file.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}: cannot write: {source}")]
+#[error("{path}: cannot write: {cause}")]
 pub struct WriteError {
     pub path: String,
-    #[source]
-    pub source: std::io::Error,
+    /// The operating system's error (in the message, so not also a `source()`).
+    pub cause: std::io::Error,
 }
 
 /// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename, so a
 /// failure never leaves a partial file and never clobbers the old one half-way.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
-    let error = |source| WriteError {
+    let error = |cause| WriteError {
         path: path.display().to_string(),
-        source,
+        cause,
     };
     let dir = path
         .parent()

@@ -556,10 +556,10 @@ fn move_object(
         job: j.id,
         stage: Stage::Meshing,
     });
-    let prepared = Prepared::new(&j.scene, &j.mesh_settings);
-    if cancel.load(Ordering::Relaxed) {
+    // Cancelled only by opening another scene, which replaces this job.
+    let Ok(prepared) = Prepared::new_cancellable(&j.scene, &j.mesh_settings, cancel) else {
         return;
-    }
+    };
     match prepared.solver(j.solver.settings().clone()) {
         Ok(solver) => {
             // The new mesh is read from the scene, which already holds the material edits.
@@ -642,10 +642,9 @@ fn load(
         job: id,
         stage: Stage::Meshing,
     });
-    let prepared = Prepared::new(&scene, mesh);
-    if cancel.load(Ordering::Relaxed) {
+    let Ok(prepared) = Prepared::new_cancellable(&scene, mesh, cancel) else {
         return Ok(None);
-    }
+    };
     if auto_method && prepared.mesh.elements.len() > AUTO_STOCHASTIC_ELEMENTS {
         solver.method = crate::solver::Method::StochasticJacobi;
     }

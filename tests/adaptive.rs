@@ -1,4 +1,4 @@
-//! A-posteriori adaptive subdivision (issue 4, item 1 and 4): refinement keeps the solve
+//! A-posteriori adaptive subdivision: refinement keeps the solve
 //! exact for the refined mesh (new elements are re-evaluated against everything already
 //! shot, so no energy is lost or invented), respects the minimum size, is deterministic,
 //! and leaves no T-vertex crack in the Gouraud display.

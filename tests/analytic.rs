@@ -1,4 +1,4 @@
-//! The analytic shadow scene `builtin:penumbra` (issue 4, item 6): its closed form against
+//! The analytic shadow scene `builtin:penumbra`: its closed form against
 //! brute-force integration, and adaptive against uniform meshing on it.
 
 use glam::DVec3;

@@ -1,4 +1,4 @@
-//! Bicubic Hermite reconstruction (issue 4, item 5): it interpolates the vertex values,
+//! Bicubic Hermite reconstruction: it interpolates the vertex values,
 //! is continuous across element edges (no cracks, also at T-vertices after refinement),
 //! removes the first-derivative jumps of Gouraud shading along edges (Mach bands) on
 //! smooth light, and is more accurate than Gouraud against the closed form of

@@ -1,4 +1,4 @@
-//! The classic leak scene (issue 4, item 3): a black block standing on a white floor, lit
+//! The classic leak scene: a black block standing on a white floor, lit
 //! straight from above by a directional light. Exact answer: the floor outside the block's
 //! footprint gets B = ρ E (the block is black and its sides get no direct light, so
 //! nothing else reaches the floor), and under the block B = 0.

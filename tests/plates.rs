@@ -1,4 +1,4 @@
-//! Parallel and perpendicular plates against closed forms (issue 4, item 6).
+//! Parallel and perpendicular plates against closed forms.
 //!
 //! Parallel: a black square emitter of
 //! radiance L facing a square receiver of reflectance ρ, nothing else. The receiver's

@@ -1,4 +1,4 @@
-//! Hard shadow edges (issue 4, items 2 and 5): a black square floats above a white floor,
+//! Hard shadow edges: a black square floats above a white floor,
 //! lit by a slanted directional light or by a point light off to one side. The exact
 //! answer is a step: outside the square's shadow the floor gets B = ρE (E the direct
 //! irradiance, I cosθ / r² for the point light), inside it 0 (the square is black and the
