@@ -181,6 +181,8 @@ fn bench_writes_curves_for_every_method() {
             "bench",
             "builtin:cornell",
             "--quiet",
+            "--reference",
+            "direct",
             "--max-elements",
             "600",
             "--out",
@@ -209,4 +211,63 @@ fn bench_writes_curves_for_every_method() {
     }
     let png = std::fs::read(d.join("convergence.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
+    let d = scratch_dir("cli-bench-path");
+    let run = || {
+        let out = bin()
+            .args([
+                "bench",
+                "builtin:penumbra",
+                "--quiet",
+                "--methods",
+                "gauss-seidel",
+                "--max-elements",
+                "400",
+                "--adaptive-threshold",
+                "0",
+                "--out",
+            ])
+            .arg(&d)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read_to_string(d.join("convergence.csv")).unwrap()
+    };
+    let csv = run();
+    let header = csv.lines().next().unwrap();
+    for column in ["rms_penumbra", "rms_umbra", "reference", "metric"] {
+        assert!(header.contains(column), "{header}");
+    }
+    assert!(csv.contains("path-traced reference"), "{csv}");
+    // The cached reference is the truth: every probe lies on the floor, where the closed
+    // form holds; each value within 4 of its standard errors (seeded, so deterministic).
+    let cache = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().contains("reference-"))
+        .expect("the reference is cached in the output folder");
+    let text = std::fs::read_to_string(&cache).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,nx,ny,nz,class,r,g,b,sr,sg,sb"));
+    let mut n = 0;
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        assert!(v[1].abs() < 1e-9 && v[4] > 0.99, "not on the floor: {line}");
+        let exact = radiosity::analytic::penumbra_floor(v[0], v[2]);
+        assert!(
+            (v[7] - exact).abs() <= 4.0 * v[10] + 1e-9,
+            "{line}: exact {exact}"
+        );
+        n += 1;
+    }
+    assert!(n >= 100, "{n} probes");
+    // A second bench reuses it.
+    assert!(run().contains("cached"));
 }

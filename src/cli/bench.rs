@@ -4,9 +4,12 @@
 use super::csv::read_table;
 use super::{SolveOptions, prepare};
 use crate::files::write_atomic;
+use crate::geometry::sampling::hash;
 use crate::mesh::Reconstruction;
 use crate::pipeline::Prepared;
 use crate::pipeline::probe_values;
+use crate::reference::probes::{self, Class, ProbeCounts};
+use crate::reference::{ReferenceSettings, Surfaces, estimate};
 use crate::scene::Scene;
 use crate::solver::{MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, SolverSettings, StepOutcome};
 use anyhow::{Context, Result};
@@ -19,10 +22,16 @@ use std::time::{Duration, Instant};
 
 /// What errors are measured against.
 enum Reference {
-    /// Per-element values on the same mesh.
+    /// Per-element values on the same mesh (the solver's convergence, not the truth).
     Elements(Vec<Vec3>, String),
-    /// Values at points (world position, normal), compared after reconstruction.
-    Points(Vec<(DVec3, DVec3)>, Vec<Vec3>),
+    /// Values at points (world position, normal), compared after reconstruction (the
+    /// viewer's Gouraud), with each point's class when known.
+    Points {
+        points: Vec<(DVec3, DVec3)>,
+        values: Vec<Vec3>,
+        classes: Option<Vec<Class>>,
+        label: String,
+    },
 }
 
 /// One row of convergence.csv.
@@ -35,6 +44,8 @@ struct Row {
     residual: Option<f64>,
     rms: f64,
     max: f64,
+    /// RMS and max of the per-point error for each class of point present.
+    classes: Vec<(Class, f64, f64)>,
 }
 
 /// Relative errors of `values` against `reference`, area-weighted over elements:
@@ -54,12 +65,50 @@ fn element_errors(values: &[Vec3], reference: &[Vec3], areas: &[f32]) -> (f64, f
     ((num / den).sqrt(), max / (den / (3.0 * area)).sqrt())
 }
 
-fn point_errors(values: &[Vec3], reference: &[Vec3]) -> (f64, f64) {
-    let areas = vec![1.0f32; values.len()];
-    element_errors(values, reference, &areas)
+/// The per-point relative error of `values` against `reference`:
+/// ‖B − R‖ / ‖max(R, 0.02 · mean R)‖ (Euclidean norms over RGB, the max per channel), so a
+/// dark point is measured against a floor of 2 % of the mean instead of its own near-zero
+/// value, and bright surfaces do not outweigh dark ones.
+pub fn point_errors(values: &[Vec3], reference: &[Vec3]) -> Vec<f64> {
+    let n = reference.len().max(1) as f64;
+    let mean = reference.iter().map(|r| r.as_dvec3()).sum::<DVec3>() / n;
+    let floor = mean * 0.02;
+    values
+        .iter()
+        .zip(reference)
+        .map(|(b, r)| {
+            let denom = r.as_dvec3().max(floor).length();
+            let d = (*b - *r).as_dvec3().length();
+            if denom > 0.0 { d / denom } else { 0.0 }
+        })
+        .collect()
 }
 
-fn compute_reference(prepared: &Prepared, spec: &str, quiet: bool) -> Result<Reference> {
+/// RMS and max of `errors`.
+fn rms_max(errors: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
+    for e in errors {
+        sum += e * e;
+        max = max.max(e);
+        n += 1;
+    }
+    if n == 0 {
+        (0.0, 0.0)
+    } else {
+        ((sum / n as f64).sqrt(), max)
+    }
+}
+
+fn compute_reference(
+    scene: &Scene,
+    prepared: &Prepared,
+    spec: &str,
+    out: &Path,
+    quiet: bool,
+) -> Result<Reference> {
+    if spec == "path" {
+        return path_reference(scene, out, quiet);
+    }
     if spec != "direct" {
         let rows = read_table(
             Path::new(spec),
@@ -73,7 +122,12 @@ fn compute_reference(prepared: &Prepared, spec: &str, quiet: bool) -> Result<Ref
             .iter()
             .map(|r| Vec3::new(r[6] as f32, r[7] as f32, r[8] as f32))
             .collect();
-        return Ok(Reference::Points(points, values));
+        return Ok(Reference::Points {
+            points,
+            values,
+            classes: None,
+            label: format!("the reference values in {spec}"),
+        });
     }
     let (n, m) = (prepared.mesh.elements.len(), prepared.mesh.patches.len());
     let (method, tolerance, what) =
@@ -94,6 +148,120 @@ fn compute_reference(prepared: &Prepared, spec: &str, quiet: bool) -> Result<Ref
     })?;
     solver.run(None, &AtomicBool::new(false))?;
     Ok(Reference::Elements(solver.radiosity(), what.to_string()))
+}
+
+/// The path-traced reference at probe points picked for `scene` ([`probes::pick`]), to 1 %
+/// standard error, cached in `out` by scene and settings (`reference-KEY.csv`, with each
+/// point's class), so a second bench of the same scene reuses it.
+fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
+    let settings = ReferenceSettings {
+        // A bound so a scene with points lit only by rare paths still finishes.
+        time_limit: Some(Duration::from_secs(600)),
+        ..Default::default()
+    };
+    let counts = ProbeCounts::default();
+    let key = cache_key(scene, &settings, &counts);
+    let cache = out.join(format!("reference-{key:016x}.csv"));
+    let label = |n: usize, what: &str| {
+        format!(
+            "path-traced reference at {n} probe points ({}% standard error{what})",
+            settings.rel_error * 100.0
+        )
+    };
+    if let Ok(rows) = read_table(
+        &cache,
+        &["x", "y", "z", "nx", "ny", "nz", "class", "r", "g", "b"],
+    ) {
+        let points = rows
+            .iter()
+            .map(|r| (DVec3::new(r[0], r[1], r[2]), DVec3::new(r[3], r[4], r[5])))
+            .collect();
+        let classes = rows
+            .iter()
+            .map(|r| Class::ALL[(r[6] as usize).min(4)])
+            .collect();
+        let values = rows
+            .iter()
+            .map(|r| Vec3::new(r[7] as f32, r[8] as f32, r[9] as f32))
+            .collect();
+        if !quiet {
+            eprintln!("reference: {} (cached)", cache.display());
+        }
+        return Ok(Reference::Points {
+            label: label(rows.len(), ", cached"),
+            points,
+            values,
+            classes: Some(classes),
+        });
+    }
+    let surfaces = Surfaces::new(scene);
+    let bvh = crate::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
+    let probes = probes::pick(&surfaces, &bvh, &counts, settings.seed);
+    let points: Vec<(DVec3, DVec3)> = probes.iter().map(|p| (p.point, p.normal)).collect();
+    let bar = super::progress_bar(quiet);
+    bar.set_length(points.len() as u64);
+    let report = |done: usize, _: usize, worst: f64| {
+        bar.set_position(done as u64);
+        bar.set_message(format!("reference: worst {:.2} %", worst * 100.0));
+    };
+    let estimates = estimate(scene, &points, &settings, &report, crate::cancel::never())?;
+    bar.finish_and_clear();
+    let mut csv = String::from("x,y,z,nx,ny,nz,class,r,g,b,sr,sg,sb\n");
+    for (p, e) in probes.iter().zip(&estimates) {
+        let class = Class::ALL.iter().position(|c| *c == p.class).unwrap_or(0);
+        let (v, se) = (e.value, e.std_error);
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{class},{},{},{},{},{},{}",
+            p.point.x,
+            p.point.y,
+            p.point.z,
+            p.normal.x,
+            p.normal.y,
+            p.normal.z,
+            v.x,
+            v.y,
+            v.z,
+            se.x,
+            se.y,
+            se.z
+        );
+    }
+    write_atomic(&cache, csv.as_bytes())?;
+    if !quiet {
+        let mut counts = String::new();
+        for c in Class::ALL {
+            let n = probes.iter().filter(|p| p.class == c).count();
+            let _ = write!(counts, " {} {n}", c.name());
+        }
+        eprintln!(
+            "reference: {} points ({counts}), {}",
+            probes.len(),
+            cache.display()
+        );
+    }
+    Ok(Reference::Points {
+        label: label(probes.len(), ""),
+        points,
+        values: estimates.iter().map(|e| e.value.as_vec3()).collect(),
+        classes: Some(probes.iter().map(|p| p.class).collect()),
+    })
+}
+
+/// A key for the reference cache: the scene (name, triangles, lights) and the settings.
+fn cache_key(scene: &Scene, settings: &ReferenceSettings, counts: &ProbeCounts) -> u64 {
+    let text = format!(
+        "{}|{}|{:?}|{:?}|{}|{}|{:?}",
+        scene.name,
+        scene.triangle_count(),
+        scene.lights,
+        scene.environment,
+        settings.rel_error,
+        settings.seed,
+        counts
+    );
+    text.bytes()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, b| hash(h ^ b as u64))
 }
 
 /// `bench SCENE --out DIR`: runs each method against the reference, writes the curves.
@@ -120,16 +288,37 @@ pub fn convergence(
         prepared.bvh_seconds
     );
     let t = Instant::now();
-    let reference = compute_reference(&prepared, reference, quiet)?;
+    let reference = compute_reference(scene, &prepared, reference, out, quiet)?;
     let reference_seconds = t.elapsed().as_secs_f64();
     let areas: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
-    let errors = |values: &[Vec3]| match &reference {
-        Reference::Elements(r, _) => element_errors(values, r, &areas),
-        Reference::Points(p, r) => point_errors(
-            &probe_values(&prepared.mesh, values, p, Reconstruction::Gouraud),
-            r,
-        ),
+    // Overall (rms, max) and per class, for a solution on `mesh`.
+    let errors = |mesh: &crate::mesh::Mesh, values: &[Vec3]| match &reference {
+        Reference::Elements(r, _) => (element_errors(values, r, &areas), Vec::new()),
+        Reference::Points {
+            points,
+            values: r,
+            classes,
+            ..
+        } => {
+            let e = point_errors(
+                &probe_values(mesh, values, points, Reconstruction::Gouraud),
+                r,
+            );
+            let per_class = classes.as_ref().map_or(Vec::new(), |c| {
+                Class::ALL
+                    .iter()
+                    .filter(|k| c.contains(k))
+                    .map(|&k| {
+                        let (rms, max) =
+                            rms_max(e.iter().zip(c).filter(|(_, ck)| **ck == k).map(|(e, _)| *e));
+                        (k, rms, max)
+                    })
+                    .collect()
+            });
+            (rms_max(e.iter().copied()), per_class)
+        }
     };
+    let truth = matches!(reference, Reference::Points { .. });
     let methods = methods.unwrap_or(Method::ALL.to_vec());
     // Each method runs to 1e-5 (or the given tolerance if tighter) so the curves pass well
     // below 1 % error, or until the time limit.
@@ -143,6 +332,13 @@ pub fn convergence(
             // Short steps give the curve its resolution; stats.seconds counts only step time.
             step_budget: Duration::from_millis(5),
             form_factors: options.solver_settings().form_factors,
+            // Against the truth, each method runs as the command line runs it (adaptive
+            // refinement included); against the same mesh, the mesh must stay.
+            adaptive: if truth {
+                options.solver_settings().adaptive
+            } else {
+                None
+            },
             ..Default::default()
         };
         let mut solver = match prepared.solver(settings) {
@@ -157,7 +353,7 @@ pub fn convergence(
         loop {
             let outcome = solver.step(&cancel)?;
             let s = solver.stats();
-            let (rms, max) = errors(&solver.radiosity());
+            let ((rms, max), classes) = errors(solver.mesh(), &solver.radiosity());
             rows.push(Row {
                 method,
                 seconds: s.seconds,
@@ -167,6 +363,7 @@ pub fn convergence(
                 residual: s.residual,
                 rms,
                 max,
+                classes,
             });
             if outcome != StepOutcome::Working || s.seconds >= time_limit {
                 break;
@@ -190,19 +387,35 @@ pub fn convergence(
             }
         );
         println!("{line}");
+        for (class, rms, max) in &last.classes {
+            println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
+        }
         summary += &line;
         summary.push('\n');
     }
-    let label = match &reference {
-        Reference::Elements(_, what) => format!("{what}, {reference_seconds:.2} s"),
-        Reference::Points(p, _) => format!("{} reference points", p.len()),
+    let (label, metric) = match &reference {
+        Reference::Elements(_, what) => (
+            format!("{what}, {reference_seconds:.2} s"),
+            "element-norm relative: sqrt(ΣA‖B−R‖² / ΣA‖R‖²)",
+        ),
+        Reference::Points { label, .. } => (
+            label.clone(),
+            "per-point relative: ‖B−R‖ / ‖max(R, 0.02·mean R)‖",
+        ),
     };
-    let mut csv = String::from(
-        "method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error\n",
-    );
+    let classes: Vec<Class> = Class::ALL
+        .into_iter()
+        .filter(|c| rows.iter().any(|r| r.classes.iter().any(|(k, ..)| k == c)))
+        .collect();
+    let mut csv =
+        String::from("method,seconds,iterations,rays,unshot_fraction,residual,rms_error,max_error");
+    for c in &classes {
+        let _ = write!(csv, ",rms_{0},max_{0}", c.name());
+    }
+    csv += ",reference,metric\n";
     for r in &rows {
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
-        let _ = writeln!(
+        let _ = write!(
             csv,
             "{},{},{},{},{},{},{:e},{:e}",
             r.method,
@@ -214,9 +427,22 @@ pub fn convergence(
             r.rms,
             r.max
         );
+        for c in &classes {
+            match r.classes.iter().find(|(k, ..)| k == c) {
+                Some((_, rms, max)) => {
+                    let _ = write!(csv, ",{rms:e},{max:e}");
+                }
+                None => csv += ",,",
+            }
+        }
+        let _ = writeln!(csv, ",\"{label}\",\"{metric}\"");
     }
     write_atomic(&out.join("convergence.csv"), csv.as_bytes())?;
-    let png = plot(&rows, &format!("{} — vs {label}", scene.name))?;
+    let short = match &reference {
+        Reference::Elements(..) => "RMS error vs the same mesh's direct solve (element norm)",
+        Reference::Points { .. } => "RMS per-point error vs the truth (‖B−R‖ / ‖max(R, 2 % mean)‖)",
+    };
+    let png = plot(&rows, &format!("{} — vs {label}", scene.name), short)?;
     write_atomic(&out.join("convergence.png"), &png)?;
     println!(
         "wrote {} and {}",
@@ -254,7 +480,7 @@ pub fn register_font() -> bool {
 }
 
 /// RMS error against seconds, log-log, one curve per method, as PNG bytes.
-fn plot(rows: &[Row], title: &str) -> Result<Vec<u8>> {
+fn plot(rows: &[Row], title: &str, y_label: &str) -> Result<Vec<u8>> {
     use plotters::prelude::*;
     let (w, h) = (960u32, 600u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
@@ -294,7 +520,7 @@ fn plot(rows: &[Row], title: &str) -> Result<Vec<u8>> {
         let mut mesh = chart.configure_mesh();
         if text {
             mesh.x_desc("solver seconds")
-                .y_desc("RMS relative error")
+                .y_desc(y_label)
                 .x_label_formatter(&|v| format!("{v:.2e}"))
                 .y_label_formatter(&|v| format!("{v:.0e}"));
         } else {

@@ -147,9 +147,12 @@ pub enum Command {
         /// Comma-separated methods (default: all).
         #[arg(long, value_delimiter = ',')]
         methods: Option<Vec<Method>>,
-        /// `direct` (the exact solve on the same mesh, or a long Gauss–Seidel/progressive run
-        /// when the mesh is too big) or a CSV x,y,z,nx,ny,nz,r,g,b of reference values.
-        #[arg(long, default_value = "direct")]
+        /// `path` (the truth: a path-traced reference at probe points the bench picks —
+        /// uniform, near edges and contacts, in penumbrae and umbrae —, cached in DIR),
+        /// `direct` (the exact solve on the same mesh, or a long Gauss–Seidel/progressive
+        /// run when the mesh is too big: the solver's convergence) or a CSV
+        /// x,y,z,nx,ny,nz,r,g,b of reference values.
+        #[arg(long, default_value = "path")]
         reference: String,
         /// Output folder for convergence.csv and convergence.png.
         #[arg(long)]

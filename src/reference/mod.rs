@@ -20,6 +20,7 @@
 //! so by its standard error rather than by being wrong.
 
 mod path;
+pub mod probes;
 mod surfaces;
 
 pub use surfaces::Surfaces;

@@ -27,6 +27,8 @@ pub struct Surfaces {
     pub double_sided: Vec<bool>,
     /// Area per triangle, m² (zero for degenerate triangles and those without material).
     pub area: Vec<f32>,
+    /// The scene object each triangle belongs to.
+    pub object: Vec<u32>,
     /// Emissive triangles and the cumulative distribution of their power Σ_c E_c · A.
     emitters: Vec<u32>,
     emitter_cdf: Vec<f64>,
@@ -59,12 +61,14 @@ impl Surfaces {
             emission: Vec::with_capacity(n),
             double_sided: Vec::with_capacity(n),
             area: Vec::with_capacity(n),
+            object: Vec::with_capacity(n),
             emitters: Vec::new(),
             emitter_cdf: Vec::new(),
         };
         let mut total = 0.0;
-        for o in &scene.objects {
+        for (oi, o) in scene.objects.iter().enumerate() {
             for (ti, t) in o.triangles.iter().enumerate() {
+                s.object.push(oi as u32);
                 let verts = t.map(|v| frame.to_local(o.world_position(v)));
                 let m = o.triangle_material.get(ti).copied().unwrap_or(0);
                 let mat = scene.materials.get(m as usize);
