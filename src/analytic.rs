@@ -130,3 +130,38 @@ pub fn penumbra_errors(
         .count();
     ((num / den).sqrt(), max, floor)
 }
+
+/// Howell's catalogue C-11: the form factor from a differential area to a parallel
+/// rectangle a × b at height c, the area on the normal through one corner:
+/// F = 1/2π [X/√(1+X²)·atan(Y/√(1+X²)) + Y/√(1+Y²)·atan(X/√(1+Y²))], X = a/c, Y = b/c.
+/// Signed by a and b, so rectangles not over the point add up by superposition.
+pub fn parallel_rectangle_corner(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a.abs() / c, b.abs() / c);
+    let f = (x / (1.0 + x * x).sqrt() * (y / (1.0 + x * x).sqrt()).atan()
+        + y / (1.0 + y * y).sqrt() * (x / (1.0 + y * y).sqrt()).atan())
+        / (2.0 * std::f64::consts::PI);
+    f * a.signum() * b.signum()
+}
+
+/// The form factor from a point to the axis-aligned square of half-width `half` centred
+/// above it at height `gap`, offset by (`px`, `pz`) from its centre: four
+/// [`parallel_rectangle_corner`] terms.
+pub fn parallel_square(px: f64, pz: f64, half: f64, gap: f64) -> f64 {
+    parallel_rectangle_corner(half - px, half - pz, gap)
+        - parallel_rectangle_corner(-half - px, half - pz, gap)
+        - parallel_rectangle_corner(half - px, -half - pz, gap)
+        + parallel_rectangle_corner(-half - px, -half - pz, gap)
+}
+
+/// Howell's catalogue: the form factor from a plane element to a perpendicular rectangle
+/// `b` wide and `a` high whose bottom edge lies in the element's plane, the element at
+/// distance `c` from the rectangle's plane in front of one bottom corner:
+/// F = 1/2π [atan(1/Y) − Y/√(X²+Y²)·atan(1/√(X²+Y²))], X = a/b, Y = c/b.
+pub fn perpendicular_rectangle_corner(a: f64, b: f64, c: f64) -> f64 {
+    if b <= 0.0 {
+        return 0.0;
+    }
+    let (x, y) = (a / b, c / b);
+    let r = (x * x + y * y).sqrt();
+    ((1.0 / y).atan() - y / r * (1.0 / r).atan()) / (2.0 * std::f64::consts::PI)
+}

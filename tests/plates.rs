@@ -19,6 +19,7 @@
 mod common;
 use common::quad_object;
 use glam::{DMat4, DVec3, Vec3};
+use radiosity::analytic::{parallel_square, perpendicular_rectangle_corner};
 use radiosity::mesh::{MeshSettings, Reconstruction};
 use radiosity::pipeline::Prepared;
 use radiosity::pipeline::probe_values;
@@ -31,20 +32,8 @@ const HALF: f64 = 0.5; // both plates 1 m × 1 m
 const GAP: f64 = 0.5; // 0.5 m apart
 const RHO: f64 = 0.5;
 
-fn corner(a: f64, b: f64, c: f64) -> f64 {
-    let (x, y) = (a.abs() / c, b.abs() / c);
-    let f = (x / (1.0 + x * x).sqrt() * (y / (1.0 + x * x).sqrt()).atan()
-        + y / (1.0 + y * y).sqrt() * (x / (1.0 + y * y).sqrt()).atan())
-        / (2.0 * PI);
-    f * a.signum() * b.signum()
-}
-
 fn exact(px: f64, pz: f64) -> f64 {
-    let f = corner(HALF - px, HALF - pz, GAP)
-        - corner(-HALF - px, HALF - pz, GAP)
-        - corner(HALF - px, -HALF - pz, GAP)
-        + corner(-HALF - px, -HALF - pz, GAP);
-    RHO * PI * f
+    RHO * PI * parallel_square(px, pz, HALF, GAP)
 }
 
 /// Solves `scene` with 0.05 m elements and returns the worst relative error against
@@ -179,19 +168,9 @@ fn receiver_radiosity_matches_the_closed_form() {
 // emitter wall at z = 0 (x in ±0.5, y in 0..1) facing +z, touching the floor along z = 0.
 const WALL: f64 = 1.0;
 
-/// Howell: floor point at distance `c` from the wall's plane, in front of one bottom
-/// corner of a `b` wide, `a` high rectangle.
-fn corner_perpendicular(a: f64, b: f64, c: f64) -> f64 {
-    if b <= 0.0 {
-        return 0.0;
-    }
-    let (x, y) = (a / b, c / b);
-    let r = (x * x + y * y).sqrt();
-    ((1.0 / y).atan() - y / r * (1.0 / r).atan()) / (2.0 * PI)
-}
-
 fn exact_perpendicular(px: f64, pz: f64) -> f64 {
-    let f = corner_perpendicular(WALL, HALF - px, pz) + corner_perpendicular(WALL, px + HALF, pz);
+    let f = perpendicular_rectangle_corner(WALL, HALF - px, pz)
+        + perpendicular_rectangle_corner(WALL, px + HALF, pz);
     RHO * PI * f
 }
 

@@ -1,16 +1,22 @@
 //! The path-traced reference (`radiosity::reference`) against closed forms: white furnaces
 //! (B = E / (1 − ρ) everywhere, at ρ = 0.5, 0.9 and 0.99, also a hair from edges and
-//! corners) and the analytic penumbra scene (B = ρ π L F_visible on the floor, in the lit
-//! region, the penumbra and the umbra). Each value must lie within 3 of its own standard
+//! corners), the analytic penumbra scene (B = ρ π L F_visible on the floor, in the lit
+//! region, the penumbra and the umbra), and parallel and perpendicular plates 1 mm from
+//! their edges (B = ρ π L F, Howell's catalogue), near the origin, a kilometre from it and
+//! at millimetre scale. Each value must lie within 3 of its own standard
 //! errors of the truth (plus 1e-9 relative, for exact zeros): that is what the reported
 //! standard error promises. The sample streams are seeded, so each run draws the same
 //! samples and the test is deterministic; a biased estimator would miss by many sigma at
 //! some point as the error target shrinks.
 
-use glam::DVec3;
-use radiosity::analytic::penumbra_floor;
+mod common;
+use common::quad_object;
+use glam::{DMat4, DVec3, Vec3};
+use radiosity::analytic::{parallel_square, penumbra_floor, perpendicular_rectangle_corner};
 use radiosity::reference::{Estimate, ReferenceSettings, estimate};
+use radiosity::scene::Material;
 use radiosity::scene::{Scene, builtin};
+use std::f64::consts::PI;
 
 fn run(scene: &Scene, points: &[(DVec3, DVec3)], rel_error: f64) -> Vec<Estimate> {
     let settings = ReferenceSettings {
@@ -131,4 +137,106 @@ fn the_same_seed_gives_the_same_values_on_any_thread_count() {
             .all(|e| e.samples > 0 && e.value.max_element() > 0.0),
         "{one:?}"
     );
+}
+
+/// A receiver (ρ = 0.5, at y = 0 facing +y, a unit square centred at the origin) and a
+/// black emitter of radiance 1: parallel at height 0.05, or (`perpendicular`) standing on
+/// the receiver's edge z = −0.5 facing +z; scaled by `scale` and moved to `origin`.
+fn plates(perpendicular: bool, origin: DVec3, scale: f64) -> Scene {
+    let place = DMat4::from_translation(origin) * DMat4::from_scale(DVec3::splat(scale));
+    let receiver = quad_object(
+        "receiver",
+        place,
+        [
+            [-0.5, 0.0, -0.5],
+            [-0.5, 0.0, 0.5],
+            [0.5, 0.0, 0.5],
+            [0.5, 0.0, -0.5],
+        ],
+        0,
+    );
+    let emitter = if perpendicular {
+        quad_object(
+            "wall",
+            place,
+            [
+                [-0.5, 0.0, -0.5],
+                [0.5, 0.0, -0.5],
+                [0.5, 1.0, -0.5],
+                [-0.5, 1.0, -0.5],
+            ],
+            1,
+        )
+    } else {
+        quad_object(
+            "emitter",
+            place,
+            [
+                [-0.5, 0.05, -0.5],
+                [0.5, 0.05, -0.5],
+                [0.5, 0.05, 0.5],
+                [-0.5, 0.05, 0.5],
+            ],
+            1,
+        )
+    };
+    Scene {
+        name: "plates".into(),
+        objects: vec![receiver, emitter],
+        materials: vec![
+            Material::diffuse("receiver", Vec3::splat(0.5)),
+            Material::emitter("emitter", Vec3::ZERO, Vec3::ONE),
+        ],
+        ..Default::default()
+    }
+}
+
+#[test]
+fn plates_match_howell_one_millimetre_from_their_edges_at_every_scale() {
+    // Receiver points in plate units: 1 mm from a corner and from an edge, and the centre.
+    let local = [
+        (0.499, 0.499),
+        (0.0, 0.499),
+        (0.499, 0.0),
+        (0.0, -0.499),
+        (0.0, 0.0),
+    ];
+    for (origin, scale) in [
+        (DVec3::ZERO, 1.0),
+        (DVec3::new(1000.0, 250.0, -1000.0), 1.0),
+        (DVec3::ZERO, 1e-3),
+    ] {
+        for perpendicular in [false, true] {
+            let scene = plates(perpendicular, origin, scale);
+            let pts: Vec<(DVec3, DVec3)> = local
+                .iter()
+                .map(|&(x, z)| (origin + DVec3::new(x, 0.0, z) * scale, DVec3::Y))
+                .collect();
+            let truth: Vec<f64> = local
+                .iter()
+                .map(|&(x, z)| {
+                    let f = if perpendicular {
+                        // The wall is 1 wide and 1 high, its plane at z = −0.5.
+                        perpendicular_rectangle_corner(1.0, 0.5 - x, z + 0.5)
+                            + perpendicular_rectangle_corner(1.0, x + 0.5, z + 0.5)
+                    } else {
+                        parallel_square(x, z, 0.5, 0.05)
+                    };
+                    0.5 * PI * f
+                })
+                .collect();
+            let est = run(&scene, &pts, 0.005);
+            let what = format!("plates (perpendicular: {perpendicular}) at {origin} × {scale}");
+            let worst = within_three_sigma(&est, &truth, &what);
+            eprintln!("{what}: worst {worst:.2} σ");
+            for (e, t) in est.iter().zip(&truth) {
+                eprintln!(
+                    "   {:.6} ± {:.6} vs {t:.6} ({:+.2} σ)",
+                    e.value.x,
+                    e.std_error.x,
+                    (e.value.x - t) / e.std_error.x
+                );
+            }
+        }
+    }
 }

@@ -101,6 +101,16 @@ fn parse_sun(s: &str) -> Result<(DVec3, Vec3), String> {
     Ok((d.normalize(), Vec3::splat(e as f32)))
 }
 
+impl Default for SolveOptions {
+    /// The command line's defaults (what `radiosity solve SCENE` uses with no options).
+    fn default() -> Self {
+        use clap::{Args as _, FromArgMatches};
+        let command = SolveOptions::augment_args(clap::Command::new("defaults"));
+        let matches = command.get_matches_from(["defaults"]);
+        SolveOptions::from_arg_matches(&matches).expect("every option has a default")
+    }
+}
+
 impl SolveOptions {
     /// The meshing these options ask for.
     pub fn mesh_settings(&self) -> MeshSettings {

@@ -104,30 +104,50 @@ impl Solver {
         rays
     }
 
-    /// One progressive-refinement shot from the patch with the most unshot power.
+    /// One progressive-refinement shot: from the patch with the most unshot power while
+    /// the unshot fraction is above the tolerance; then from the patch with the most
+    /// unshot radiosity ΔB̄_p (W/m²) until none is above the tolerance times the mean
+    /// radiosity. The first criterion bounds the error in power, which is what the scene
+    /// as a whole is short of; the second bounds it at every receiver, since patch p's
+    /// unshot part would add at most ρ_i F_ip ΔB̄_p ≤ ΔB̄_p to element i: a sliver or a
+    /// tiny patch has little power but can fill half the hemisphere of the elements beside
+    /// it, and without the second criterion it would never shoot.
     /// `Err(Cancelled)` leaves the solve as it was (the column is computed first).
     pub(super) fn shoot(&mut self, cancel: &AtomicBool) -> Result<(), Cancelled> {
         let mesh = Arc::clone(&self.mesh);
         let (mut best, mut best_power, mut total) = (usize::MAX, 0.0f64, 0.0f64);
+        let (mut densest, mut densest_unshot) = (usize::MAX, 0.0f64);
+        let (mut radiosity, mut area) = (0.0f64, 0.0f64);
         for (pi, p) in mesh.patches.iter().enumerate() {
             // Signed unshot radiosity (after an edit) is shot like positive: by magnitude.
             let mut power = 0.0;
             for i in p.elements.clone() {
-                power +=
-                    sum3d(self.unshot[i as usize].abs()) * mesh.elements[i as usize].area as f64;
+                let a = mesh.elements[i as usize].area as f64;
+                power += sum3d(self.unshot[i as usize].abs()) * a;
+                radiosity += sum3d(self.radiosity[i as usize].abs()) * a;
+                area += a;
             }
             total += power;
             if power > best_power {
                 best_power = power;
                 best = pi;
             }
+            let unshot = power / p.area as f64;
+            if unshot > densest_unshot {
+                densest_unshot = unshot;
+                densest = pi;
+            }
         }
         let fraction = total / self.power_scale;
         self.stats.unshot_fraction = Some(fraction);
         self.stats.residual = Some(fraction);
         if fraction <= self.settings.tolerance || best == usize::MAX {
-            self.phase = Phase::Done;
-            return Ok(());
+            let mean = if area > 0.0 { radiosity / area } else { 0.0 };
+            if densest == usize::MAX || densest_unshot <= self.settings.tolerance * mean {
+                self.phase = Phase::Done;
+                return Ok(());
+            }
+            best = densest;
         }
         let column = self.column(best, cancel)?;
         let p = &mesh.patches[best];

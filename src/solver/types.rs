@@ -61,8 +61,9 @@ impl std::str::FromStr for Method {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolverSettings {
     pub method: Method,
-    /// Convergence threshold: unshot fraction (progressive) or relative residual (Jacobi,
-    /// Gauss–Seidel), both relative to the source power Σ A_i E'_i.
+    /// Convergence threshold: unshot fraction (progressive; and no patch's unshot radiosity
+    /// above this times the mean radiosity) or relative residual (Jacobi, Gauss–Seidel),
+    /// both relative to the source power Σ A_i E'_i.
     pub tolerance: f64,
     pub form_factors: FormFactorSettings,
     /// Wall-clock work per [`Solver::step`] before it returns (a frame's worth).
