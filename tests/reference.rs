@@ -279,3 +279,33 @@ fn the_cornell_box_matches_mitsuba_3() {
         rows.len()
     );
 }
+
+#[test]
+fn cornell_probes_cover_every_class_and_leave_covered_points_out() {
+    use radiosity::reference::Surfaces;
+    use radiosity::reference::probes::{Class, ProbeCounts, pick};
+    let scene = builtin::cornell_box();
+    let surfaces = Surfaces::new(&scene);
+    let bvh = radiosity::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
+    let probes = pick(&surfaces, &bvh, &ProbeCounts::default(), 1);
+    for class in Class::ALL {
+        let n = probes.iter().filter(|p| p.class == class).count();
+        assert!(n >= 20, "{} {class:?} probes", n);
+    }
+    // The ceiling (y = 0.5488) above the flush lamp (x 0.213..0.343, z 0.227..0.332, 0.1 mm
+    // below it) is covered: no probe may lie there (the lamp's own face may be probed).
+    for p in &probes {
+        let (x, y, z) = (p.point.x, p.point.y, p.point.z);
+        let under_lamp = y > 0.54875 && (0.213..0.343).contains(&x) && (0.227..0.332).contains(&z);
+        assert!(!under_lamp, "{p:?}");
+    }
+    // Contact probes lie within 1 cm of another object: beside a block (below its top at
+    // 0.33 m) or beside the lamp (at the ceiling), never in the open room.
+    for p in probes.iter().filter(|p| p.class == Class::Contact) {
+        let y = p.point.y;
+        assert!(
+            !(0.34..=0.538).contains(&y),
+            "a contact away from the blocks and the lamp: {p:?}"
+        );
+    }
+}

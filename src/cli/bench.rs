@@ -251,7 +251,8 @@ fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
 /// A key for the reference cache: the scene (name, triangles, lights) and the settings.
 fn cache_key(scene: &Scene, settings: &ReferenceSettings, counts: &ProbeCounts) -> u64 {
     let text = format!(
-        "{}|{}|{:?}|{:?}|{}|{}|{:?}",
+        "{}|{}|{}|{:?}|{:?}|{}|{}|{:?}",
+        probes::SCHEME,
         scene.name,
         scene.triangle_count(),
         scene.lights,

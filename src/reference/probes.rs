@@ -74,6 +74,9 @@ impl Default for ProbeCounts {
     }
 }
 
+/// How the probes are drawn, for keys of cached references: a change here must change it.
+pub const SCHEME: &str = "uniform by area; edges by length, half contacts, covered points left out; shadows of area lights by area";
+
 /// Shadow rays per probe for its shadow class, to points spread over the emitters.
 const SHADOW_RAYS: u32 = 64;
 
@@ -83,7 +86,8 @@ fn near_distance(s: &Surfaces) -> f32 {
 }
 
 /// Probes for `surfaces` (seeded by `seed`): `counts.uniform` by area; `counts.near_edges`
-/// at 0.1 mm to 1 cm (log-uniform) inside a triangle edge that another face is near;
+/// at 0.1 mm to 1 cm (log-uniform) inside a triangle edge that another face is near (half
+/// of them near another object's face, contacts, where the scene has enough);
 /// penumbra and umbra points drawn by area until their counts are met (or a budget of
 /// candidates is spent: a scene may have none). Only reflective sides are probed.
 pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Probe> {
@@ -109,7 +113,7 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
     // Uniform by area.
     let uniform: Vec<Probe> = (0..counts.uniform as u64)
         .into_par_iter()
-        .map(|k| {
+        .filter_map(|k| {
             let h = hash(seed ^ hash(k));
             let t = by_area(h);
             let p = point_in_triangle(
@@ -121,15 +125,29 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
         })
         .collect();
     out.extend(uniform);
-    // Near edges: a point on a triangle edge (by length), moved inwards by 0.1 mm..1 cm.
-    let candidates = counts.near_edges as u64 * 20;
+    // Near edges: a point on a triangle edge (uniform by length over every edge, so the
+    // small faces of objects standing on others get their share), moved inwards by
+    // 0.1 mm..1 cm.
+    let mut edge_cdf = Vec::with_capacity(receivers.len() * 3);
+    let mut perimeter = 0.0f64;
+    for &t in &receivers {
+        let v = s.triangles[t as usize];
+        for e in 0..3 {
+            perimeter += (v[(e + 1) % 3] - v[e]).length() as f64;
+            edge_cdf.push(perimeter);
+        }
+    }
+    let candidates = counts.near_edges as u64 * 40;
     let edges: Vec<Probe> = (0..candidates)
         .into_par_iter()
         .filter_map(|k| {
             let h = hash(seed ^ 0xED6E ^ hash(k));
-            let t = by_area(h);
+            let x = unit(h) as f64 * perimeter;
+            let j = edge_cdf
+                .partition_point(|c| *c <= x)
+                .min(edge_cdf.len() - 1);
+            let (t, e) = (receivers[j / 3], j % 3);
             let v = s.triangles[t as usize];
-            let e = (unit(hash(h ^ 3)) * 3.0) as usize % 3;
             let (a, b, c) = (v[e], v[(e + 1) % 3], v[(e + 2) % 3]);
             let on_edge = a + (b - a) * unit(hash(h ^ 4));
             let d = near * 10f32.powf(-2.0 * unit(hash(h ^ 5)));
@@ -141,11 +159,24 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
             if (q - p).length() > d * 1e-3 {
                 return None; // the triangle is narrower than d there
             }
-            let probe = classify(t, q, h);
+            let probe = classify(t, q, h)?;
             matches!(probe.class, Class::Edge | Class::Contact).then_some(probe)
         })
         .collect();
-    out.extend(edges.into_iter().take(counts.near_edges));
+    // Half contacts and half edges where there are enough of each.
+    let contacts = edges.iter().filter(|p| p.class == Class::Contact).count();
+    let want_contacts = contacts.min(counts.near_edges / 2);
+    let want_edges = counts.near_edges - want_contacts;
+    let (mut taken_contacts, mut taken_edges) = (0, 0);
+    for p in edges {
+        let take = match p.class {
+            Class::Contact => (taken_contacts < want_contacts).then(|| taken_contacts += 1),
+            _ => (taken_edges < want_edges).then(|| taken_edges += 1),
+        };
+        if take.is_some() {
+            out.push(p);
+        }
+    }
     // Shadows of area lights: candidates by area, kept by class.
     if s.has_emitters() {
         let candidates = ((counts.penumbra + counts.umbra) as u64 * 40).max(1000);
@@ -159,7 +190,7 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
                     unit(hash(h ^ 1)),
                     unit(hash(h ^ 2)),
                 );
-                let probe = classify(t, p, h);
+                let probe = classify(t, p, h)?;
                 matches!(probe.class, Class::Penumbra | Class::Umbra).then_some(probe)
             })
             .collect();
@@ -180,14 +211,18 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
 
 /// The class of point `p` on triangle `t`: contact or edge when another object's or the
 /// same object's face (not coplanar) is within `near`, else umbra or penumbra by the area
-/// lights' visibility, else interior.
-fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Probe {
+/// lights' visibility, else interior. `None` for a covered point: a face pressed against
+/// it, parallel to it within `near` / 20 (a lamp flush under a ceiling, a box's base on a
+/// floor), where nobody can look.
+fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Option<Probe> {
     let n = s.normal[t as usize];
     let point = s.frame.origin + p.as_dvec3();
-    let probe = |class| Probe {
-        point,
-        normal: n.as_dvec3(),
-        class,
+    let probe = |class| {
+        Some(Probe {
+            point,
+            normal: n.as_dvec3(),
+            class,
+        })
     };
     // The nearest other face in front of the point (within `near`).
     let mut nearest: Option<(f32, u32)> = None;
@@ -204,7 +239,10 @@ fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Prob
             nearest = Some((d, j as u32));
         }
     }
-    if let Some((_, j)) = nearest {
+    if let Some((d, j)) = nearest {
+        if d <= near / 20.0 && s.normal[j as usize].dot(n).abs() > 0.999 {
+            return None;
+        }
         let class = if s.object[j as usize] == s.object[t as usize] {
             Class::Edge
         } else {
