@@ -291,6 +291,14 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         && a.converged()));
     let back = centroid(h.state()) - start;
     assert!(back.length() < 1e-4, "undo left the block at {back}");
+
+    // Opening another scene starts from a clean slate: nothing selected or highlighted
+    // (object ids of one scene mean nothing in the next).
+    assert!(h.state().selected_object().is_some());
+    h.state_mut().open("builtin:penumbra".into());
+    assert!(step_until(&mut h, 60.0, |a| a.mesh().is_some()));
+    assert_eq!(h.state().selected_object(), None);
+    assert_eq!(h.state().display().selected, None);
 }
 
 #[test]

@@ -87,6 +87,8 @@ impl App {
     /// new scene's mesh places it) and the recent-files list carry over.
     pub fn open(&mut self, source: String) {
         self.session = Session::new(self.session.job + 1, source.clone());
+        // The highlight is a display setting that names an object of the old scene.
+        self.display.selected = None;
         self.mesh_settings.element_size = (self.element_size > 0.0).then_some(self.element_size);
         self.worker.send(Command::Load {
             job: self.session.job,
