@@ -9,7 +9,7 @@ use super::sizing::{
     PATCH_PER_ELEMENT, choose_element_size, default_budget, depth_for, sides, split_patches,
 };
 use super::{DisplayMesh, Element, Mesh, MeshSettings, Patch, QuadNode, contact, shadow};
-use super::{split as cdt, surface_values};
+use super::{scene_triangle, split as cdt, surface_values};
 use crate::accel::Bvh;
 use crate::cancel::{Cancelled, check};
 use crate::geometry::{subdivide, triangle_area as area, triangle_cross};
@@ -137,9 +137,8 @@ pub(super) fn build(
 /// below f32 resolution at the scene's scale, or no material) get none, with one warning
 /// for all of them; clamped reflectances get one too.
 fn sources(scene: &Scene, cancel: &AtomicBool) -> Result<Input, Cancelled> {
-    let (lo, hi) = scene.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
-    let origin = (lo + hi) * 0.5;
-    let scale = ((hi - lo).length() as f32).max(f32::MIN_POSITIVE);
+    let frame = scene.frame();
+    let (origin, scale) = (frame.origin, frame.scale);
     let mut warnings = Vec::new();
     let mut triangles = Vec::with_capacity(scene.triangle_count());
     let mut transmittance = Vec::with_capacity(scene.triangle_count());
@@ -147,24 +146,16 @@ fn sources(scene: &Scene, cancel: &AtomicBool) -> Result<Input, Cancelled> {
     let (mut degenerate, mut clamped) = (0usize, 0usize);
     for (oi, o) in scene.objects.iter().enumerate() {
         check(cancel)?;
-        for (ti, t) in o.triangles.iter().enumerate() {
-            let verts = t.map(|v| (o.world_position(v) - origin).as_vec3());
-            let m = o.triangle_material.get(ti).copied().unwrap_or(0);
-            let Some(mat) = scene.materials.get(m as usize) else {
+        for ti in 0..o.triangles.len() {
+            let Some(st) = scene_triangle(scene, o, ti, &frame) else {
                 degenerate += 1;
                 continue;
             };
+            let (verts, m, mat) = (st.verts, st.material, st.mat);
             let scene_triangle = triangles.len() as u32;
             triangles.push(verts);
-            transmittance.push(
-                o.transmittance
-                    .get(ti)
-                    .copied()
-                    .unwrap_or(mat.transmittance),
-            );
-            // Degenerate: non-finite, or area below f32 resolution at this scale.
-            let a = area(&verts);
-            if !verts.iter().all(|p| p.is_finite()) || a.is_nan() || a <= scale * scale * 1e-14 {
+            transmittance.push(st.transmittance);
+            if st.degenerate {
                 degenerate += 1;
                 continue;
             }

@@ -37,7 +37,7 @@ pub use hard_shadows::LightTargets;
 
 use crate::accel::Bvh;
 use crate::cancel::Cancelled;
-use crate::geometry::{Frame, closest_point_on_triangle};
+use crate::geometry::{Frame, closest_point_on_triangle, triangle_area};
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use std::ops::Range;
@@ -283,6 +283,45 @@ impl Mesh {
         }
         best.map(|(_, i, b)| (i, b))
     }
+}
+
+/// One scene triangle as every light-transport stage reads it (the mesher's sources, the
+/// path-traced reference's surfaces): its corners in the scene's frame, its material and
+/// transmittance, and whether it is too degenerate to receive light.
+pub struct SceneTriangle<'a> {
+    pub verts: [Vec3; 3],
+    pub material: u32,
+    pub mat: &'a crate::scene::Material,
+    /// Fraction of a shadow ray it lets through (alpha cut-outs, glass).
+    pub transmittance: f32,
+    /// Non-finite, or an area below f32 resolution at the frame's scale: it blocks rays
+    /// but receives no light.
+    pub degenerate: bool,
+}
+
+/// Triangle `t` of object `o` in `frame`; `None` when its material does not exist (such a
+/// triangle neither blocks nor receives light).
+pub fn scene_triangle<'a>(
+    scene: &'a Scene,
+    o: &crate::scene::Object,
+    t: usize,
+    frame: &Frame,
+) -> Option<SceneTriangle<'a>> {
+    let verts = o.triangles[t].map(|v| frame.to_local(o.world_position(v)));
+    let material = o.triangle_material.get(t).copied().unwrap_or(0);
+    let mat = scene.materials.get(material as usize)?;
+    let transmittance = o.transmittance.get(t).copied().unwrap_or(mat.transmittance);
+    let a = triangle_area(&verts);
+    let scale = frame.scale;
+    let degenerate =
+        !verts.iter().all(|p| p.is_finite()) || a.is_nan() || a <= scale * scale * 1e-14;
+    Some(SceneTriangle {
+        verts,
+        material,
+        mat,
+        transmittance,
+        degenerate,
+    })
 }
 
 /// Reflectance ρ (clamped to [0, 0.999]) and emitted radiosity E = π L_e of triangle `t`

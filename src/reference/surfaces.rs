@@ -5,9 +5,9 @@
 
 use crate::geometry::sampling::point_in_triangle;
 use crate::geometry::{Frame, closest_point_on_triangle, triangle_area, triangle_cross};
-use crate::mesh::surface_values;
+use crate::mesh::{scene_triangle, surface_values};
 use crate::scene::Scene;
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 /// Every scene triangle with what light transport needs of it.
 pub struct Surfaces {
@@ -43,14 +43,12 @@ pub struct EmitterSample {
 }
 
 impl Surfaces {
-    /// The surfaces of `scene`. Triangles with no material or no area stay in the table
-    /// (they still block rays, as in the mesh's BVH) with zero area and no light.
+    /// The surfaces of `scene`, triangle by triangle as the mesher reads them
+    /// ([`crate::mesh::scene_triangle`]): triangles without a material are left out (they
+    /// block nothing in the solvers either); degenerate ones stay, blocking rays, with zero
+    /// area and no light.
     pub fn new(scene: &Scene) -> Surfaces {
-        let (lo, hi) = scene.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
-        let frame = Frame {
-            origin: (lo + hi) * 0.5,
-            scale: ((hi - lo).length() as f32).max(f32::MIN_POSITIVE),
-        };
+        let frame = scene.frame();
         let n = scene.triangle_count();
         let mut s = Surfaces {
             frame,
@@ -67,42 +65,33 @@ impl Surfaces {
         };
         let mut total = 0.0;
         for (oi, o) in scene.objects.iter().enumerate() {
-            for (ti, t) in o.triangles.iter().enumerate() {
-                s.object.push(oi as u32);
-                let verts = t.map(|v| frame.to_local(o.world_position(v)));
-                let m = o.triangle_material.get(ti).copied().unwrap_or(0);
-                let mat = scene.materials.get(m as usize);
-                s.transmittance.push(
-                    o.transmittance
-                        .get(ti)
-                        .copied()
-                        .unwrap_or(mat.map_or(0.0, |m| m.transmittance)),
-                );
-                let a = triangle_area(&verts);
-                let scale = frame.scale;
-                let usable = verts.iter().all(|p| p.is_finite())
-                    && a.is_finite()
-                    && a > scale * scale * 1e-14;
-                let (rho, emission, double_sided) = match mat {
-                    Some(mat) if usable => {
-                        let (rho, e, _) = surface_values(mat, o, ti);
-                        (rho, e, mat.double_sided)
-                    }
-                    _ => (Vec3::ZERO, Vec3::ZERO, false),
+            for ti in 0..o.triangles.len() {
+                let Some(t) = scene_triangle(scene, o, ti, &frame) else {
+                    continue;
                 };
+                let usable = !t.degenerate;
+                let (rho, emission, _) = surface_values(t.mat, o, ti);
+                let (rho, emission) = if usable {
+                    (rho, emission)
+                } else {
+                    (Vec3::ZERO, Vec3::ZERO)
+                };
+                let a = if usable { triangle_area(&t.verts) } else { 0.0 };
                 let index = s.triangles.len() as u32;
-                s.triangles.push(verts);
+                s.triangles.push(t.verts);
+                s.transmittance.push(t.transmittance);
+                s.object.push(oi as u32);
                 s.normal.push(if usable {
-                    triangle_cross(&verts).normalize_or_zero()
+                    triangle_cross(&t.verts).normalize_or_zero()
                 } else {
                     Vec3::ZERO
                 });
-                s.area.push(if usable { a } else { 0.0 });
+                s.area.push(a);
                 s.reflectance.push(rho);
                 s.emission.push(emission);
-                s.double_sided.push(double_sided);
+                s.double_sided.push(usable && t.mat.double_sided);
                 let power = (emission.x + emission.y + emission.z) as f64 * a as f64;
-                if usable && power > 0.0 {
+                if power > 0.0 {
                     total += power;
                     s.emitters.push(index);
                     s.emitter_cdf.push(total);

@@ -177,6 +177,16 @@ impl Scene {
     }
 
     /// World-space axis-aligned bounds of all vertices (f64), or `None` for an empty scene.
+    /// The frame meshes and the reference store positions in: centred on the bounds,
+    /// `scale` their diagonal (at least the smallest positive f32).
+    pub fn frame(&self) -> crate::geometry::Frame {
+        let (lo, hi) = self.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        crate::geometry::Frame {
+            origin: (lo + hi) * 0.5,
+            scale: ((hi - lo).length() as f32).max(f32::MIN_POSITIVE),
+        }
+    }
+
     pub fn bounds(&self) -> Option<(DVec3, DVec3)> {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
