@@ -340,6 +340,7 @@ pub fn convergence(
             } else {
                 None
             },
+            hierarchy: options.solver_settings().hierarchy,
             ..Default::default()
         };
         let mut solver = match prepared.solver(settings) {

@@ -5,7 +5,7 @@
 use crate::mesh::Reconstruction;
 use crate::mesh::{AdaptiveSettings, MeshSettings};
 use crate::solver::form_factor::FormFactorSettings;
-use crate::solver::{Method, SolverSettings};
+use crate::solver::{HierarchySettings, Method, SolverSettings};
 use clap::Args;
 use glam::{DVec3, Vec3};
 
@@ -63,10 +63,18 @@ pub struct SolveOptions {
     /// contrast to a neighbour exceeds this (0.2 ≈ a 22 % step); 0 turns it off.
     #[arg(long, default_value_t = AdaptiveSettings::default().threshold)]
     pub adaptive_threshold: f32,
-    /// Smallest element adaptive subdivision may make, metres (default: an eighth of the
-    /// starting element size).
+    /// Smallest element adaptive subdivision or the hierarchy may make, metres (default:
+    /// an eighth of the starting element size).
     #[arg(long)]
     pub min_element_size: Option<f64>,
+    /// Hierarchical: the refinement oracle's relative threshold ε (a link is refined when
+    /// its estimated error exceeds ε times the mean radiosity); smaller means more links
+    /// and elements.
+    #[arg(long, default_value_t = HierarchySettings::default().link_error)]
+    pub link_error: f32,
+    /// Hierarchical: start from every pair of patches instead of the root cluster.
+    #[arg(long)]
+    pub no_clustering: bool,
 }
 
 fn parse_rgb(s: &str) -> Result<Vec3, String> {
@@ -132,6 +140,12 @@ impl SolveOptions {
         s.form_factors.max_rays = self.max_rays.max(1);
         s.form_factors.penumbra_rays = self.penumbra_rays.max(1);
         s.form_factors.min_rays = self.min_rays.clamp(1, s.form_factors.max_rays);
+        s.hierarchy = HierarchySettings {
+            link_error: self.link_error,
+            clustering: !self.no_clustering,
+            min_size: self.min_element_size.filter(|m| *m > 0.0),
+            ..Default::default()
+        };
         s.adaptive = (self.adaptive_threshold > 0.0).then(|| AdaptiveSettings {
             threshold: self.adaptive_threshold,
             min_size: self.min_element_size.filter(|m| *m > 0.0),

@@ -70,6 +70,7 @@ impl Solver {
                 if self.phase == Phase::Done {
                     self.phase = Phase::Iterating;
                 }
+                self.hierarchy_edited();
             }
         }
         if self.power_scale <= 0.0 {

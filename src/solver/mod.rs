@@ -30,6 +30,7 @@ mod edits;
 pub mod form_factor;
 mod gathering;
 pub mod hemicube;
+mod hierarchical;
 mod progressive;
 mod refine;
 mod source_term;
@@ -37,8 +38,8 @@ pub mod stochastic;
 mod types;
 
 pub use types::{
-    MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, PatchEdit, SolverError, SolverSettings, Stats,
-    StepOutcome,
+    HierarchySettings, MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, PatchEdit, SolverError,
+    SolverSettings, Stats, StepOutcome,
 };
 
 use crate::accel::Bvh;
@@ -104,6 +105,8 @@ pub struct Solver {
     mesh_version: u64,
     /// The stochastic iteration under way.
     pending: Option<Pending>,
+    /// The hierarchical method's links and node values (built on its first step).
+    hierarchy: Option<hierarchical::Hierarchy>,
     stats: Stats,
     shot_power: f64,
     captured_power: f64,
@@ -172,6 +175,7 @@ impl Solver {
             rows: Vec::new(),
             reflectance,
             pending: None,
+            hierarchy: None,
             stats: Stats {
                 method: Some(settings.method),
                 elements: n,
@@ -278,6 +282,7 @@ impl Solver {
                 Method::GaussSeidel => self.gauss_seidel_sweep(),
                 Method::StochasticJacobi => self.stochastic_chunk(),
                 Method::Direct => self.direct_solve(cancel)?,
+                Method::Hierarchical => self.hierarchical_work(cancel)?,
             },
             Phase::Done => {}
         }

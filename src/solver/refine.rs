@@ -44,6 +44,9 @@ impl Solver {
         let Some(a) = self.settings.adaptive.clone() else {
             return Ok(false);
         };
+        if self.settings.method == Method::Hierarchical {
+            return Ok(false); // it refines its own hierarchy (see `hierarchical`)
+        }
         if self.refine_passes >= a.max_passes || self.stats.source_power <= 0.0 {
             return Ok(false);
         }

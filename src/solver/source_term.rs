@@ -70,7 +70,9 @@ impl Solver {
         }
         self.update_source_power();
         self.phase = match self.settings.method {
-            Method::Progressive | Method::StochasticJacobi => Phase::Iterating,
+            Method::Progressive | Method::StochasticJacobi | Method::Hierarchical => {
+                Phase::Iterating
+            }
             _ => Phase::Rows(0),
         };
         if self.power_scale <= 0.0 {

@@ -17,11 +17,13 @@ pub enum Method {
     GaussSeidel,
     StochasticJacobi,
     Direct,
+    Hierarchical,
 }
 
 impl Method {
     /// Every method, in the order `bench` compares them.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
+        Method::Hierarchical,
         Method::Progressive,
         Method::Jacobi,
         Method::GaussSeidel,
@@ -37,6 +39,7 @@ impl Method {
             Method::GaussSeidel => "gauss-seidel",
             Method::StochasticJacobi => "stochastic-jacobi",
             Method::Direct => "direct",
+            Method::Hierarchical => "hierarchical",
         }
     }
 }
@@ -53,7 +56,7 @@ impl std::str::FromStr for Method {
         Method::ALL
             .into_iter()
             .find(|m| m.name() == s || (s == "gs" && *m == Method::GaussSeidel))
-            .ok_or_else(|| format!("unknown method '{s}' (expected progressive, jacobi, gauss-seidel, stochastic-jacobi or direct)"))
+            .ok_or_else(|| format!("unknown method '{s}' (expected hierarchical, progressive, jacobi, gauss-seidel, stochastic-jacobi or direct)"))
     }
 }
 
@@ -75,6 +78,35 @@ pub struct SolverSettings {
     /// A-posteriori adaptive subdivision after each converged solve (`None`: the mesh
     /// stays as built). The command line and the viewer turn it on by default.
     pub adaptive: Option<AdaptiveSettings>,
+    /// The hierarchical method's oracle and limits.
+    pub hierarchy: HierarchySettings,
+}
+
+/// Settings of [`Method::Hierarchical`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct HierarchySettings {
+    /// The oracle's relative threshold ε: a link is refined when its estimated error
+    /// exceeds ε times the scene's mean radiosity. Smaller: more links and elements.
+    pub link_error: f32,
+    /// Start from one link of the root cluster to itself (on) or from every pair of
+    /// patches (off, for small scenes and comparisons).
+    pub clustering: bool,
+    /// The smallest element the hierarchy makes (metres, as `sqrt(2·area)`); `None`: an
+    /// eighth of the starting element size.
+    pub min_size: Option<f64>,
+    /// Most leaf elements (a memory bound).
+    pub max_elements: usize,
+}
+
+impl Default for HierarchySettings {
+    fn default() -> Self {
+        HierarchySettings {
+            link_error: 0.05,
+            clustering: true,
+            min_size: None,
+            max_elements: 2_000_000,
+        }
+    }
 }
 
 impl Default for SolverSettings {
@@ -89,6 +121,7 @@ impl Default for SolverSettings {
             cache_bytes: 1 << 30,
             stochastic_rays: None,
             adaptive: None,
+            hierarchy: HierarchySettings::default(),
         }
     }
 }
@@ -116,6 +149,15 @@ pub struct Stats {
     /// Source power Σ A_i E'_i summed over RGB, W.
     pub source_power: f64,
     pub converged: bool,
+    /// Hierarchical: links, and the bytes they take.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub links: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_bytes: Option<usize>,
+    /// Hierarchical: seconds from the start of solving until the first solution covering
+    /// the whole scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_solution_seconds: Option<f64>,
 }
 
 /// A live material change of one patch (see [`Solver::edit_patches`]).

@@ -1,0 +1,443 @@
+//! Hierarchical radiosity with clustering (Hanrahan, Salzman & Aupperle, "A rapid
+//! hierarchical radiosity algorithm", SIGGRAPH 1991; clusters after Smits, Arvo & Greenberg
+//! 1994 and Sillion 1995): [`Method::Hierarchical`](super::Method::Hierarchical).
+//!
+//! The nodes are the scene's clusters ([`clusters`]) above the patches' element quadtrees
+//! (`Mesh::nodes`, extended on demand by midpoint subdivision). A link joins two nodes at
+//! any levels and carries the transfer from its source to its receiver ([`transfer`]):
+//! H_r += factor · B_s. The solve alternates two stages:
+//!
+//! - **refine** ([`oracle`]): every link whose estimated error ρ_r · (spread · B_s +
+//!   factor · ΔB_s) exceeds ε times the scene's mean radiosity is replaced by links to the
+//!   children of one end, recursively, down to the minimum element size; a leaf that must
+//!   split is split in the mesh first. The oracle runs again each time the sweeps converge
+//!   (B_s grows as light spreads), and the solve is done when it changes nothing.
+//! - **sweep** (Jacobi over the links, then push–pull): pull B up the hierarchy as area
+//!   means, gather H at every node over its links, push H down (a leaf receives the sum over
+//!   its ancestors, clusters included) and set B_leaf = E'_leaf + ρ_leaf · H; repeat until
+//!   the area-weighted change per sweep is below the tolerance.
+//!
+//! A link's factor does not depend on ρ or E, so an edit of a material only sweeps again
+//! (and lets the oracle look again): no existing form factor is recomputed.
+//!
+//! Results do not depend on the thread count: each link's rays are seeded by its ends'
+//! ids, links are sorted by (receiver, source), and every sum runs in that order.
+
+mod clusters;
+mod oracle;
+#[cfg(test)]
+mod tests;
+mod transfer;
+
+use super::types::Stop;
+use super::{Solver, sum3d};
+use crate::geometry::closest_point_on_triangle;
+use crate::mesh::Mesh;
+use clusters::Clusters;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+/// A node of the hierarchy: a quadtree node of `Mesh::nodes` or, with the top bit set, a
+/// cluster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub(super) struct NodeId(pub u32);
+
+const CLUSTER_BIT: u32 = 1 << 31;
+const NONE: u32 = u32::MAX;
+
+impl NodeId {
+    pub fn surface(node: u32) -> NodeId {
+        NodeId(node)
+    }
+    pub fn of_cluster(c: u32) -> NodeId {
+        NodeId(c | CLUSTER_BIT)
+    }
+    /// The cluster index, if this is a cluster.
+    pub fn cluster(self) -> Option<usize> {
+        (self.0 & CLUSTER_BIT != 0).then_some((self.0 & !CLUSTER_BIT) as usize)
+    }
+}
+
+/// One link: 24 bytes, no heap allocation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Link {
+    pub receiver: NodeId,
+    pub source: NodeId,
+    /// Irradiance per unit radiosity of the source at the receiver's three quadrature
+    /// points (see `transfer`); the sign bit of the first says whether a shadow boundary
+    /// crosses the link.
+    at: [f32; 3],
+    /// What the linear transfer may miss over the receiver (see `transfer`).
+    pub spread: f32,
+}
+
+impl Link {
+    pub fn new(
+        receiver: NodeId,
+        source: NodeId,
+        values: [f32; 3],
+        spread: f32,
+        partial: bool,
+    ) -> Link {
+        let mut at = values.map(f32::abs);
+        if partial {
+            at[0] = -at[0];
+        }
+        if partial && at[0] == 0.0 {
+            at[0] = -0.0;
+        }
+        Link {
+            receiver,
+            source,
+            at,
+            spread,
+        }
+    }
+    /// The transfer at the three quadrature points.
+    pub fn values(&self) -> [f32; 3] {
+        [self.at[0].abs(), self.at[1], self.at[2]]
+    }
+    /// The transfer averaged over the receiver.
+    pub fn factor(&self) -> f32 {
+        let v = self.values();
+        (v[0] + v[1] + v[2]) / 3.0
+    }
+    /// The linear function through the quadrature values, at the receiver's corners:
+    /// 2 v_k − mean (each point lies halfway between the centroid and corner k).
+    pub fn corners(&self) -> [f32; 3] {
+        let v = self.values();
+        let m = self.factor();
+        v.map(|x| 2.0 * x - m)
+    }
+    /// A shadow boundary crosses the link.
+    pub fn partial(&self) -> bool {
+        self.at[0].is_sign_negative()
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stage {
+    Refine,
+    Sweep,
+}
+
+/// The hierarchy's state beside the solver's per-element arrays (which hold the leaves'
+/// B, E', ρ and E).
+pub(super) struct Hierarchy {
+    clusters: Clusters,
+    /// Sorted by (receiver, source).
+    links: Vec<Link>,
+    /// Per mesh node: parent node (`NONE` at a patch root), patch, area, B and gathered H.
+    parent: Vec<u32>,
+    node_patch: Vec<u32>,
+    node_area: Vec<f32>,
+    node_b: Vec<Vec3>,
+    /// Gathered H at each node as a linear function: its values at the node's corners.
+    node_h: Vec<[Vec3; 3]>,
+    cluster_b: Vec<Vec3>,
+    cluster_h: Vec<Vec3>,
+    /// The leaf node of each element.
+    element_node: Vec<u32>,
+    /// Largest reflectance channel per patch (edits change it).
+    patch_reflectance: Vec<f32>,
+    stage: Stage,
+    /// The refinement round under way, and how many have started.
+    round: Option<oracle::Round>,
+    rounds: u32,
+    /// The largest oracle threshold so far (see `Solver::held_threshold`).
+    threshold: f32,
+    sweeps: u64,
+    started: Instant,
+}
+
+impl Hierarchy {
+    fn new(mesh: &Mesh, reflectance: &[Vec3]) -> Hierarchy {
+        let inside: Vec<u32> = (0..mesh.patches.len() as u32)
+            .filter(|&p| !mesh.patches[p as usize].covered)
+            .collect();
+        let clusters = Clusters::build(mesh, &inside);
+        let patch_reflectance = mesh
+            .patches
+            .iter()
+            .map(|p| {
+                reflectance
+                    .get(p.elements.start as usize)
+                    .copied()
+                    .unwrap_or(p.reflectance)
+                    .max_element()
+            })
+            .collect();
+        let mut h = Hierarchy {
+            cluster_b: vec![Vec3::ZERO; clusters.nodes.len()],
+            cluster_h: vec![Vec3::ZERO; clusters.nodes.len()],
+            clusters,
+            links: Vec::new(),
+            parent: Vec::new(),
+            node_patch: Vec::new(),
+            node_area: Vec::new(),
+            node_b: Vec::new(),
+            node_h: Vec::new(),
+            element_node: Vec::new(),
+            patch_reflectance,
+            stage: Stage::Refine,
+            round: None,
+            rounds: 0,
+            threshold: 0.0,
+            sweeps: 0,
+            started: Instant::now(),
+        };
+        h.grow(mesh);
+        h
+    }
+
+    /// Extends the per-node arrays to nodes the mesh gained, and maps elements to leaves.
+    fn grow(&mut self, mesh: &Mesh) {
+        let old = self.parent.len();
+        let n = mesh.nodes.len();
+        self.parent.resize(n, NONE);
+        self.node_patch.resize(n, NONE);
+        self.node_area.resize(n, 0.0);
+        self.node_b.resize(n, Vec3::ZERO);
+        self.node_h.resize(n, [Vec3::ZERO; 3]);
+        if old == 0 {
+            for (p, patch) in mesh.patches.iter().enumerate() {
+                self.node_patch[patch.root as usize] = p as u32;
+            }
+        }
+        // Parents come before their children, so one pass in index order sets both.
+        for i in 0..n {
+            if let Some(kids) = mesh.nodes[i].children {
+                for k in kids {
+                    let k = k as usize;
+                    if k >= old {
+                        self.parent[k] = i as u32;
+                        self.node_patch[k] = self.node_patch[i];
+                        self.node_b[k] = self.node_b[i];
+                    }
+                }
+            }
+        }
+        for i in old..n {
+            self.node_area[i] = crate::geometry::triangle_area(&mesh.nodes[i].verts);
+        }
+        self.element_node = vec![NONE; mesh.elements.len()];
+        for (i, node) in mesh.nodes.iter().enumerate() {
+            if let Some(e) = node.element {
+                self.element_node[e as usize] = i as u32;
+            }
+        }
+    }
+
+    fn b(&self, id: NodeId) -> Vec3 {
+        match id.cluster() {
+            Some(c) => self.cluster_b[c],
+            None => self.node_b[id.0 as usize],
+        }
+    }
+
+    /// Pulls B up: each inner node and cluster gets the area mean of its children.
+    fn pull(&mut self, mesh: &Mesh, radiosity: &[DVec3]) {
+        for i in (0..mesh.nodes.len()).rev() {
+            let node = &mesh.nodes[i];
+            self.node_b[i] = match (node.element, node.children) {
+                (Some(e), _) => radiosity[e as usize].as_vec3(),
+                (None, Some(kids)) => {
+                    let mut s = Vec3::ZERO;
+                    let mut a = 0.0;
+                    for k in kids {
+                        s += self.node_b[k as usize] * self.node_area[k as usize];
+                        a += self.node_area[k as usize];
+                    }
+                    if a > 0.0 { s / a } else { Vec3::ZERO }
+                }
+                (None, None) => Vec3::ZERO,
+            };
+        }
+        for c in (0..self.clusters.nodes.len()).rev() {
+            let mut s = Vec3::ZERO;
+            let mut a = 0.0;
+            for &k in self.clusters.children_of(c) {
+                let area = match k.cluster() {
+                    Some(j) => self.clusters.nodes[j].area,
+                    None => self.node_area[k.0 as usize],
+                };
+                s += self.b(k) * area;
+                a += area;
+            }
+            self.cluster_b[c] = if a > 0.0 { s / a } else { Vec3::ZERO };
+        }
+    }
+
+    /// Gathers H at every receiver over its links (at a surface node's corners; one value
+    /// for a cluster).
+    fn gather(&mut self) {
+        let sums: Vec<(NodeId, [Vec3; 3])> = self
+            .links
+            .par_chunk_by(|a, b| a.receiver == b.receiver)
+            .map(|group| {
+                let mut h = [Vec3::ZERO; 3];
+                for l in group {
+                    let b = self.b(l.source);
+                    let c = l.corners();
+                    for k in 0..3 {
+                        h[k] += b * c[k];
+                    }
+                }
+                (group[0].receiver, h)
+            })
+            .collect();
+        self.node_h.iter_mut().for_each(|h| *h = [Vec3::ZERO; 3]);
+        self.cluster_h.iter_mut().for_each(|h| *h = Vec3::ZERO);
+        for (r, h) in sums {
+            match r.cluster() {
+                Some(c) => self.cluster_h[c] = h[0],
+                None => self.node_h[r.0 as usize] = h,
+            }
+        }
+    }
+
+    /// H pushed down the clusters: each cluster's own plus its ancestors'.
+    fn cluster_down(&self) -> Vec<Vec3> {
+        let mut down = self.cluster_h.clone();
+        for c in 0..down.len() {
+            let p = self.clusters.nodes[c].parent;
+            if p != NONE {
+                let above = down[p as usize];
+                down[c] += above;
+            }
+        }
+        down
+    }
+
+    /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
+    /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
+    /// receive, area-weighted, exactly what it gathered: push conserves power).
+    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &[Vec3]) -> Vec3 {
+        let mut node = self.element_node[element];
+        let x = mesh.elements[element].centroid();
+        let mut h = Vec3::ZERO;
+        while node != NONE {
+            let corners = &self.node_h[node as usize];
+            let (_, w) = closest_point_on_triangle(x, &mesh.nodes[node as usize].verts);
+            h += corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2];
+            node = self.parent[node as usize];
+        }
+        let c = self.clusters.patch_parent[mesh.elements[element].patch as usize];
+        if c != NONE {
+            h += down[c as usize];
+        }
+        h
+    }
+
+    /// [`Hierarchy::leaf_irradiance_linear`] with the negative values that extrapolated
+    /// linear functions can reach (beside a shadow boundary) cut off at zero.
+    fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Vec3]) -> Vec3 {
+        self.leaf_irradiance_linear(mesh, element, down)
+            .max(Vec3::ZERO)
+    }
+
+    /// Bytes the links take.
+    pub fn link_bytes(&self) -> usize {
+        self.links.len() * std::mem::size_of::<Link>()
+    }
+}
+
+impl Solver {
+    /// One piece of the hierarchical solve: a refinement round or one sweep.
+    pub(super) fn hierarchical_work(&mut self, cancel: &AtomicBool) -> Result<(), Stop> {
+        let mut h = match self.hierarchy.take() {
+            Some(h) => h,
+            None => {
+                let mut h = Hierarchy::new(&self.mesh, &self.reflectance);
+                h.pull(&self.mesh, &self.radiosity);
+                h
+            }
+        };
+        let result = self.hierarchical_piece(&mut h, cancel);
+        self.stats.links = Some(h.links.len());
+        self.stats.link_bytes = Some(h.link_bytes());
+        self.hierarchy = Some(h);
+        result
+    }
+
+    fn hierarchical_piece(&mut self, h: &mut Hierarchy, cancel: &AtomicBool) -> Result<(), Stop> {
+        match h.stage {
+            Stage::Refine => match self.refine_piece(h, cancel)? {
+                None => {}
+                // Done when a round at the full threshold changed nothing.
+                Some(false) if h.sweeps > 0 && h.rounds > 2 => self.phase = super::Phase::Done,
+                Some(_) => h.stage = Stage::Sweep,
+            },
+            Stage::Sweep => {
+                let change = self.sweep(h);
+                if self.stats.first_solution_seconds.is_none() {
+                    self.stats.first_solution_seconds = Some(h.started.elapsed().as_secs_f64());
+                }
+                self.stats.residual = Some(change);
+                self.stats.iterations += 1;
+                // Jacobi's change per sweep shrinks by about ρ̄ each sweep, so what is left
+                // is change · ρ̄ / (1 − ρ̄): the tolerance is scaled by 1 − ρ̄.
+                if change <= self.settings.tolerance * (1.0 - self.mean_reflectance()).max(1e-3) {
+                    h.stage = Stage::Refine;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// One Jacobi sweep with push–pull; returns the area-weighted relative change of B.
+    fn sweep(&mut self, h: &mut Hierarchy) -> f64 {
+        let mesh = &self.mesh;
+        h.pull(mesh, &self.radiosity);
+        h.gather();
+        let down = h.cluster_down();
+        let (source, reflectance) = (&self.source, &self.reflectance);
+        let new: Vec<DVec3> = (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|e| {
+                let hh = h.leaf_irradiance(mesh, e, &down);
+                source[e].as_dvec3() + (reflectance[e] * hh).as_dvec3()
+            })
+            .collect();
+        let (mut changed, mut total) = (0.0f64, 0.0f64);
+        for (e, (b, old)) in new.iter().zip(&self.radiosity).enumerate() {
+            let a = mesh.elements[e].area as f64;
+            changed += sum3d((*b - *old).abs()) * a;
+            total += sum3d(b.abs()) * a;
+        }
+        self.radiosity = new;
+        h.sweeps += 1;
+        if total > 0.0 { changed / total } else { 0.0 }
+    }
+
+    /// Area-weighted mean of the largest reflectance channel.
+    pub(super) fn mean_reflectance(&self) -> f64 {
+        let (mut rho, mut area) = (0.0f64, 0.0f64);
+        for (e, r) in self.mesh.elements.iter().zip(&self.reflectance) {
+            rho += r.max_element() as f64 * e.area as f64;
+            area += e.area as f64;
+        }
+        if area > 0.0 { rho / area } else { 0.0 }
+    }
+
+    /// After an edit: sweep again from the current solution, then let the oracle look.
+    pub(super) fn hierarchy_edited(&mut self) {
+        if let Some(h) = &mut self.hierarchy {
+            let mesh = &self.mesh;
+            for (p, patch) in mesh.patches.iter().enumerate() {
+                if let Some(rho) = self.reflectance.get(patch.elements.start as usize) {
+                    h.patch_reflectance[p] = rho.max_element();
+                }
+            }
+            let (roots, rho) = (&h.node_patch, &h.patch_reflectance);
+            h.clusters
+                .update_reflectance(|root| rho[roots[root as usize] as usize]);
+            if h.round.is_none() {
+                h.stage = Stage::Sweep;
+            }
+        }
+    }
+}

@@ -1,0 +1,564 @@
+//! The refinement oracle and the link refinement it drives (Hanrahan, Salzman & Aupperle
+//! 1991, §4 "Refine"; with B-weighting and the source's variation as in Hanrahan et al.'s
+//! "BF refinement").
+//!
+//! A link's error estimate is ρ_r · (spread · B_s + factor · ΔB_s · min(1, r_s / d)): the kernel's variation
+//! over the link's ends (partial visibility included, see `transfer`) times the radiosity
+//! it carries, plus what averaging the source hides (ΔB_s, the spread of its children's
+//! radiosity, times the kernel's relative variation across a source of radius r_s at
+//! distance d). A link above ε · B̄ · (1 − ρ̄) (B̄ and ρ̄ the scene's area-weighted mean
+//! radiosity and reflectance; see [`Solver::link_threshold`]) is
+//! replaced by links to the children of one end: the source when its own variation
+//! dominates, otherwise the larger end (by area between surfaces, by radius when a cluster
+//! is involved; a cluster linked to itself splits both ends). A leaf that must split and is
+//! at least twice the minimum size is split in the mesh first, all such leaves at once.
+//!
+//! Refinement runs in generations (every link decided in parallel, the new links evaluated
+//! in parallel) until no link needs it, so one round refines as deep as the current
+//! solution asks; the order of the links does not matter, since they are sorted at the end.
+
+use super::transfer::{self, Shape, Transfer};
+use super::{Hierarchy, Link, NONE, NodeId};
+use crate::cancel::check;
+use crate::mesh::Mesh;
+use crate::solver::refine::remap;
+use crate::solver::types::Stop;
+use crate::solver::{Method, Solver, external_factor};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+/// How much stricter the oracle is with links from a cluster (see `View::decide`).
+const CLUSTER_STRICTNESS: f32 = 16.0;
+
+/// A refinement round under way, kept between steps.
+#[derive(Default)]
+pub(super) struct Round {
+    threshold: f32,
+    /// Links decided to stay.
+    kept: Vec<Link>,
+    /// Links to decide (the next generation).
+    work: Vec<Link>,
+    /// New pairs to evaluate, and how many are done.
+    pairs: Vec<(NodeId, NodeId)>,
+    next_pair: usize,
+    /// Evaluated new links of this generation.
+    made: Vec<Link>,
+    /// Links waiting for a leaf split, and the leaves.
+    waiting: Vec<Link>,
+    leaves: Vec<u32>,
+    changed: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Decision {
+    Keep,
+    Receiver,
+    Source,
+    /// A cluster linked to itself: every pair of its children.
+    Both,
+    /// This leaf must be split in the mesh before the link can refine.
+    Leaf(u32),
+}
+
+/// What the oracle needs of the hierarchy and the mesh, borrowed once per generation.
+struct View<'a> {
+    h: &'a Hierarchy,
+    mesh: &'a Mesh,
+    min_size: f64,
+    threshold: f32,
+}
+
+impl View<'_> {
+    fn shape(&self, id: NodeId) -> Shape {
+        match id.cluster() {
+            Some(c) => {
+                let c = &self.h.clusters.nodes[c];
+                Shape::Cluster {
+                    centre: c.centre,
+                    radius: c.radius,
+                    area: c.area,
+                    area_vector: c.area_vector,
+                    samples: c.samples.map(|p| {
+                        let p = &self.mesh.patches[p as usize];
+                        (p.centroid(), p.normal, p.scene_triangle)
+                    }),
+                }
+            }
+            None => {
+                let n = id.0 as usize;
+                let p = &self.mesh.patches[self.h.node_patch[n] as usize];
+                Shape::Surface {
+                    verts: self.mesh.nodes[n].verts,
+                    normal: p.normal,
+                    area: self.h.node_area[n],
+                    triangle: p.scene_triangle,
+                }
+            }
+        }
+    }
+
+    fn reflectance(&self, id: NodeId) -> f32 {
+        match id.cluster() {
+            Some(c) => self.h.clusters.nodes[c].reflectance,
+            None => self.h.patch_reflectance[self.h.node_patch[id.0 as usize] as usize],
+        }
+    }
+
+    /// Children of a node, if it has any now.
+    fn children(&self, id: NodeId) -> Option<Vec<NodeId>> {
+        match id.cluster() {
+            Some(c) => Some(self.h.clusters.children_of(c).to_vec()),
+            None => self.mesh.nodes[id.0 as usize]
+                .children
+                .map(|k| k.map(NodeId::surface).to_vec()),
+        }
+    }
+
+    /// Whether a leaf surface node may be split (its children are at least the minimum size).
+    fn leaf_can_split(&self, n: u32) -> bool {
+        let size = (2.0 * self.h.node_area[n as usize] as f64).sqrt();
+        size * 0.5 >= self.min_size * 0.999
+    }
+
+    /// Spread of the children's radiosity (largest channel) of a surface node.
+    fn source_variation(&self, id: NodeId) -> f32 {
+        if id.cluster().is_some() {
+            return 0.0;
+        }
+        let Some(kids) = self.mesh.nodes[id.0 as usize].children else {
+            return 0.0;
+        };
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for k in kids {
+            let b = self.h.node_b[k as usize].max_element();
+            lo = lo.min(b);
+            hi = hi.max(b);
+        }
+        (hi - lo).max(0.0)
+    }
+
+    fn decide(&self, l: &Link) -> Decision {
+        if l.receiver.cluster().is_some() {
+            // Clusters send but do not receive: a cluster would hand the same irradiance
+            // to surfaces facing every way (a box's lit and unlit faces alike), so links
+            // always end on surfaces, which take the light with their own orientation.
+            return if l.receiver == l.source {
+                Decision::Both
+            } else {
+                Decision::Receiver
+            };
+        }
+        let rho = self.reflectance(l.receiver);
+        let b = self.h.b(l.source).max_element();
+        let (r, s) = (self.shape(l.receiver), self.shape(l.source));
+        let kernel = rho * l.spread * b;
+        // Averaging B over the source errs by ΔB_s times how much the kernel varies across
+        // the source, about its radius over the distance (at most 1).
+        let d = (r.centre() - s.centre()).length();
+        let across = if d > 0.0 {
+            (s.radius() / d).min(1.0)
+        } else {
+            1.0
+        };
+        let variation = rho * l.factor() * self.source_variation(l.source) * across;
+        // A cluster's transfer errs the same way on every link (the far-field kernel of a
+        // nearby cluster is low, as the mean of 1/r² exceeds 1/r̄²), so its errors add up
+        // over a receiver's cluster links instead of averaging out: they are held to a
+        // sixteenth of the threshold.
+        let threshold = if l.source.cluster().is_some() {
+            self.threshold / CLUSTER_STRICTNESS
+        } else {
+            self.threshold
+        };
+        // NaN (an infinite spread carrying nothing) keeps the link.
+        if !(kernel + variation > threshold) {
+            return Decision::Keep;
+        }
+        if l.receiver == l.source {
+            return Decision::Both;
+        }
+        let surfaces = l.receiver.cluster().is_none() && l.source.cluster().is_none();
+        // Which ends may split, in order of preference. Between surfaces the point-to-
+        // polygon factor integrates the source exactly, so the kernel's variation is the
+        // receiver's to resolve; the source splits for its own variation of B, or, at a
+        // shadow boundary, when it is more than four times the receiver's area and the
+        // receiver cannot split (finer visibility). With a cluster the larger end splits.
+        let order: &[(NodeId, Decision)] = if !surfaces {
+            if r.radius() >= s.radius() {
+                &[
+                    (l.receiver, Decision::Receiver),
+                    (l.source, Decision::Source),
+                ]
+            } else {
+                &[
+                    (l.source, Decision::Source),
+                    (l.receiver, Decision::Receiver),
+                ]
+            }
+        } else if variation > kernel {
+            &[(l.source, Decision::Source)]
+        } else if l.partial() && area(&s) > 4.0 * area(&r) {
+            &[
+                (l.receiver, Decision::Receiver),
+                (l.source, Decision::Source),
+            ]
+        } else {
+            &[(l.receiver, Decision::Receiver)]
+        };
+        for &(id, d) in order {
+            if id.cluster().is_some() || self.mesh.nodes[id.0 as usize].children.is_some() {
+                return d;
+            }
+            if self.leaf_can_split(id.0) {
+                return Decision::Leaf(id.0);
+            }
+        }
+        Decision::Keep
+    }
+
+    /// Whether neither end of a pair can be split further.
+    fn fine(&self, r: NodeId, s: NodeId) -> bool {
+        let unsplittable = |id: NodeId| {
+            id.cluster().is_none()
+                && self.mesh.nodes[id.0 as usize].children.is_none()
+                && !self.leaf_can_split(id.0)
+        };
+        unsplittable(r) && unsplittable(s)
+    }
+
+    /// The link from `s` to `r`, or `None` when it provably carries nothing.
+    fn link(&self, bvh: &crate::accel::Bvh, r: NodeId, s: NodeId) -> Option<(Link, u32)> {
+        if r.cluster().is_none()
+            && s.cluster().is_none()
+            && self.h.node_patch[r.0 as usize] == self.h.node_patch[s.0 as usize]
+        {
+            return None; // a plane does not see itself
+        }
+        let (rs, ss) = (self.shape(r), self.shape(s));
+        let Transfer {
+            values,
+            mut spread,
+            partial,
+            rays,
+        } = transfer::evaluate(
+            bvh,
+            self.mesh.epsilon(),
+            (r, &rs),
+            (s, &ss),
+            self.fine(r, s),
+        );
+        if spread <= 0.0 && values.iter().all(|v| *v <= 0.0) {
+            if !straddles(&rs, &ss) {
+                return None;
+            }
+            // The sample points see nothing, but part of the receiver faces part of the
+            // source: the oracle splits it if the source carries light.
+            spread = 1.0;
+        }
+        Some((Link::new(r, s, values, spread, partial), rays))
+    }
+}
+
+fn area(s: &Shape) -> f32 {
+    match s {
+        Shape::Surface { area, .. } | Shape::Cluster { area, .. } => *area,
+    }
+}
+
+/// Whether some corner of surface `r` lies in front of surface `s` and some corner of `s`
+/// above `r`'s plane (so part of `r` may see part of `s`); clusters always may.
+fn straddles(r: &Shape, s: &Shape) -> bool {
+    match (r, s) {
+        (
+            Shape::Surface {
+                verts: rv,
+                normal: rn,
+                ..
+            },
+            Shape::Surface {
+                verts: sv,
+                normal: sn,
+                ..
+            },
+        ) => {
+            let scale = rv
+                .iter()
+                .chain(sv)
+                .map(|v| v.abs().max_element())
+                .fold(1e-30, f32::max);
+            let tol = scale * 1e-6;
+            rv.iter().any(|v| sn.dot(*v - sv[0]) > tol)
+                && sv.iter().any(|v| rn.dot(*v - rv[0]) > tol)
+        }
+        _ => true,
+    }
+}
+
+impl Solver {
+    /// The starting links: the root cluster to itself, or (clustering off) every pair of
+    /// patches.
+    fn initial_links(&self, h: &Hierarchy, min_size: f64) -> (Vec<Link>, u64) {
+        let view = View {
+            h,
+            mesh: &self.mesh,
+            min_size,
+            threshold: 0.0,
+        };
+        let pairs: Vec<(NodeId, NodeId)> = if self.settings.hierarchy.clustering {
+            if h.clusters.nodes.is_empty() {
+                Vec::new()
+            } else {
+                vec![(NodeId::of_cluster(0), NodeId::of_cluster(0))]
+            }
+        } else {
+            let roots: Vec<NodeId> = (0..self.mesh.patches.len())
+                .filter(|&p| h.clusters.patch_parent[p] != NONE)
+                .map(|p| NodeId::surface(self.mesh.patches[p].root))
+                .collect();
+            roots
+                .iter()
+                .flat_map(|&r| roots.iter().map(move |&s| (r, s)))
+                .collect()
+        };
+        let bvh = &self.bvh;
+        let made: Vec<(Link, u32)> = pairs
+            .par_iter()
+            .filter_map(|&(r, s)| view.link(bvh, r, s))
+            .collect();
+        let rays = made.iter().map(|m| m.1 as u64).sum();
+        (made.into_iter().map(|m| m.0).collect(), rays)
+    }
+
+    /// The oracle's threshold: ε · B̄ · (1 − ρ̄), with B̄ and ρ̄ the area-weighted means of
+    /// the radiosity and the reflectance (largest channels) over the scene. An error δ in
+    /// every transfer of a closed scene grows to about δ / (1 − ρ̄) after all bounces, so
+    /// this keeps the converged error near ε · B̄ whatever the reflectance (a furnace at
+    /// ρ = 0.99 refines a hundred times deeper than one at ρ = 0).
+    pub(super) fn link_threshold(&self) -> f32 {
+        let (mut b, mut area) = (0.0f64, 0.0f64);
+        for (e, x) in self.mesh.elements.iter().zip(&self.radiosity) {
+            b += x.max_element() * e.area as f64;
+            area += e.area as f64;
+        }
+        if area <= 0.0 {
+            return 0.0;
+        }
+        let amplification = (1.0 - self.mean_reflectance()).max(1e-3);
+        (self.settings.hierarchy.link_error as f64 * b / area * amplification) as f32
+    }
+
+    /// [`Solver::link_threshold`], never below the largest it has been in this solve: an
+    /// edit that darkens the scene lowers every link's error and must not refine (it would
+    /// when the mean radiosity falls faster than the errors do).
+    fn held_threshold(&self, h: &mut Hierarchy) -> f32 {
+        h.threshold = h.threshold.max(self.link_threshold());
+        h.threshold
+    }
+
+    /// The smallest element the hierarchy may make.
+    pub(super) fn hierarchy_min_size(&self) -> f64 {
+        self.settings
+            .hierarchy
+            .min_size
+            .filter(|m| *m > 0.0)
+            .unwrap_or(self.mesh.element_size / 8.0)
+    }
+
+    /// One piece of a refinement round (a generation's decisions, a chunk of new links
+    /// evaluated, or one split of leaves in the mesh), so a step keeps its time budget;
+    /// `Some(changed)` when the round is over, with whether any link changed.
+    pub(super) fn refine_piece(
+        &mut self,
+        h: &mut Hierarchy,
+        cancel: &AtomicBool,
+    ) -> Result<Option<bool>, Stop> {
+        let min_size = self.hierarchy_min_size();
+        let mut round = match h.round.take() {
+            Some(r) => r,
+            None => {
+                let mut changed = false;
+                if h.sweeps == 0 && h.links.is_empty() {
+                    let (links, rays) = self.initial_links(h, min_size);
+                    h.links = links;
+                    self.stats.rays += rays;
+                    changed = true;
+                }
+                h.pull(&self.mesh, &self.radiosity);
+                // Streaming: the first rounds refine to a coarser threshold (16 ε, 4 ε),
+                // so a whole-scene solution comes early and then sharpens.
+                let coarse = 16.0 / 4f32.powi(h.rounds.min(2) as i32);
+                let threshold = self.held_threshold(h) * coarse.max(1.0);
+                h.rounds += 1;
+                if !(threshold > 0.0) {
+                    h.links.sort_unstable_by_key(|l| (l.receiver, l.source));
+                    return Ok(Some(changed));
+                }
+                Round {
+                    threshold,
+                    work: std::mem::take(&mut h.links),
+                    changed,
+                    ..Default::default()
+                }
+            }
+        };
+        let result = self.advance(h, &mut round, min_size, cancel);
+        match result {
+            Ok(true) => {
+                let mut kept = std::mem::take(&mut round.kept);
+                kept.sort_unstable_by_key(|l| (l.receiver, l.source));
+                h.links = kept;
+                Ok(Some(round.changed))
+            }
+            Ok(false) => {
+                h.round = Some(round);
+                Ok(None)
+            }
+            Err(e) => {
+                h.round = Some(round);
+                Err(e)
+            }
+        }
+    }
+
+    /// Does the next piece of `round`; true when it is over (its links all in `kept`).
+    fn advance(
+        &mut self,
+        h: &mut Hierarchy,
+        round: &mut Round,
+        min_size: f64,
+        cancel: &AtomicBool,
+    ) -> Result<bool, Stop> {
+        check(cancel)?;
+        let view = View {
+            h,
+            mesh: &self.mesh,
+            min_size,
+            threshold: round.threshold,
+        };
+        if round.next_pair < round.pairs.len() {
+            // Evaluate the next chunk of new links.
+            let chunk = 16_384 * rayon::current_num_threads().max(1);
+            let end = (round.next_pair + chunk).min(round.pairs.len());
+            let bvh = &self.bvh;
+            let made: Vec<(Link, u32)> = round.pairs[round.next_pair..end]
+                .par_iter()
+                .filter_map(|&(r, s)| view.link(bvh, r, s))
+                .collect();
+            self.stats.rays += made.iter().map(|m| m.1 as u64).sum::<u64>();
+            round.made.extend(made.into_iter().map(|m| m.0));
+            round.next_pair = end;
+            if end == round.pairs.len() {
+                round.pairs = Vec::new();
+                round.next_pair = 0;
+                round.work = std::mem::take(&mut round.made);
+            }
+            return Ok(false);
+        }
+        if !round.work.is_empty() {
+            // Decide a generation.
+            let decisions: Vec<Decision> = round.work.par_iter().map(|l| view.decide(l)).collect();
+            for (l, d) in round.work.iter().zip(&decisions) {
+                match d {
+                    Decision::Keep => round.kept.push(*l),
+                    Decision::Leaf(n) => {
+                        round.leaves.push(*n);
+                        round.waiting.push(*l);
+                    }
+                    Decision::Receiver => {
+                        for c in view.children(l.receiver).unwrap_or_default() {
+                            round.pairs.push((c, l.source));
+                        }
+                    }
+                    Decision::Source => {
+                        for c in view.children(l.source).unwrap_or_default() {
+                            round.pairs.push((l.receiver, c));
+                        }
+                    }
+                    Decision::Both => {
+                        let kids = view.children(l.receiver).unwrap_or_default();
+                        for &a in &kids {
+                            for &b in &kids {
+                                round.pairs.push((a, b));
+                            }
+                        }
+                    }
+                }
+            }
+            round.work = Vec::new();
+            round.changed |= !round.pairs.is_empty();
+            return Ok(false);
+        }
+        if round.waiting.is_empty() {
+            return Ok(true);
+        }
+        // Every generation is decided: split the leaves the waiting links need, then decide
+        // those links again.
+        let mut leaves = std::mem::take(&mut round.leaves);
+        leaves.sort_unstable();
+        leaves.dedup();
+        if !self.split_leaves(h, &leaves) {
+            round.kept.append(&mut round.waiting);
+            return Ok(true);
+        }
+        round.work = std::mem::take(&mut round.waiting);
+        Ok(false)
+    }
+
+    /// Splits the leaf nodes `leaves` (and what 2:1 balance adds) in the mesh, carrying the
+    /// per-element state over; false when the element budget would be exceeded.
+    fn split_leaves(&mut self, h: &mut Hierarchy, leaves: &[u32]) -> bool {
+        let mut marked = vec![false; self.mesh.elements.len()];
+        for &n in leaves {
+            if let Some(e) = self.mesh.nodes[n as usize].element {
+                marked[e as usize] = true;
+            }
+        }
+        self.mesh.balance(&mut marked);
+        let count = marked.iter().filter(|m| **m).count();
+        if count == 0 || self.mesh.elements.len() + 3 * count > self.settings.hierarchy.max_elements
+        {
+            return false;
+        }
+        let mut mesh = (*self.mesh).clone();
+        let moved = mesh.refine(&marked);
+        mesh.mark_hard_shadows(&self.bvh, &self.external, self.hierarchy_min_size());
+        let n = mesh.elements.len();
+        self.radiosity = remap(&self.radiosity, &moved, n);
+        self.source = remap(&self.source, &moved, n);
+        self.reflectance = remap(&self.reflectance, &moved, n);
+        self.emission = remap(&self.emission, &moved, n);
+        self.external_in = remap(&self.external_in, &moved, n);
+        self.unshot = vec![Default::default(); n];
+        self.gathered = vec![Default::default(); n];
+        let children: Vec<u32> = moved
+            .iter()
+            .flat_map(|m| match m {
+                crate::mesh::Moved::Split(kids) => kids.to_vec(),
+                crate::mesh::Moved::Kept(_) => Vec::new(),
+            })
+            .collect();
+        let (bvh, external) = (&self.bvh, &self.external);
+        let lit: Vec<(Vec3, u32)> = children
+            .par_iter()
+            .map(|&c| external_factor(&mesh, bvh, external, c as usize))
+            .collect();
+        for (&c, (hx, rays)) in children.iter().zip(lit) {
+            let c = c as usize;
+            let s = self.emission[c] + self.reflectance[c] * hx;
+            let s = if s.is_finite() { s } else { Vec3::ZERO };
+            self.radiosity[c] += (s - self.source[c]).as_dvec3();
+            self.source[c] = s;
+            self.external_in[c] = hx;
+            self.stats.rays += rays as u64;
+        }
+        self.mesh = Arc::new(mesh);
+        h.grow(&self.mesh);
+        self.stats.elements = n;
+        self.mesh_version += 1;
+        self.update_source_power();
+        debug_assert_eq!(self.settings.method, Method::Hierarchical);
+        true
+    }
+}

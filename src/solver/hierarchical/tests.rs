@@ -1,0 +1,142 @@
+//! The hierarchy's machinery against independent truth: with the links fixed at the leaves
+//! the sweeps must reach the solution of the same linear system solved densely, and
+//! push–pull must hand the leaves exactly the power the nodes gathered.
+
+use super::*;
+use crate::accel::Bvh;
+use crate::light::ExternalLight;
+use crate::mesh::MeshSettings;
+use crate::scene::builtin;
+use crate::solver::{HierarchySettings, Method, SolverSettings};
+use std::sync::Arc;
+
+fn solver(mesh: MeshSettings, hierarchy: HierarchySettings, tolerance: f64) -> Solver {
+    let scene = builtin::cornell_box();
+    let mesh = Mesh::build(&scene, &mesh);
+    let bvh = Bvh::build(&mesh.triangles, &mesh.transmittance);
+    let external = ExternalLight {
+        lights: scene.lights.clone(),
+        environment: scene.environment.clone(),
+    };
+    Solver::new(
+        Arc::new(mesh),
+        Arc::new(bvh),
+        external,
+        SolverSettings {
+            method: Method::Hierarchical,
+            tolerance,
+            hierarchy,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// Dense Gaussian elimination with partial pivoting (the test's own, independent of the
+/// solver's LU).
+fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
+    let n = b.len();
+    for k in 0..n {
+        let p = (k..n)
+            .max_by(|&i, &j| a[i][k].abs().total_cmp(&a[j][k].abs()))
+            .unwrap();
+        a.swap(k, p);
+        b.swap(k, p);
+        for i in k + 1..n {
+            let m = a[i][k] / a[k][k];
+            for j in k..n {
+                a[i][j] -= m * a[k][j];
+            }
+            b[i] -= m * b[k];
+        }
+    }
+    let mut x = vec![0.0; n];
+    for i in (0..n).rev() {
+        let s: f64 = (i + 1..n).map(|j| a[i][j] * x[j]).sum();
+        x[i] = (b[i] - s) / a[i][i];
+    }
+    x
+}
+
+#[test]
+fn with_links_fixed_at_the_leaves_the_sweeps_reach_the_dense_solution() {
+    // One element per patch, every pair of patches linked, no refinement: the hierarchy is
+    // then the flat system B = E' + ρ F B with F_ij the links' factors (the linear transfer
+    // at the receiver's centroid, which is the mean of its quadrature values).
+    let mut s = solver(
+        MeshSettings {
+            element_size: Some(10.0),
+            ..Default::default()
+        },
+        HierarchySettings {
+            link_error: f32::INFINITY,
+            clustering: false,
+            ..Default::default()
+        },
+        1e-12,
+    );
+    s.run(None, crate::cancel::never()).unwrap();
+    let h = s.hierarchy.as_ref().unwrap();
+    let n = s.mesh.elements.len();
+    assert_eq!(n, s.mesh.patches.len(), "one element per patch");
+    let element_of = |id: NodeId| s.mesh.nodes[id.0 as usize].element.unwrap() as usize;
+    for channel in 0..3 {
+        let mut a = vec![vec![0.0f64; n]; n];
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
+        for l in &h.links {
+            let (i, j) = (element_of(l.receiver), element_of(l.source));
+            a[i][j] -= s.reflectance[i][channel] as f64 * l.factor() as f64;
+        }
+        let b: Vec<f64> = s.source.iter().map(|e| e[channel] as f64).collect();
+        let exact = solve_dense(a, b);
+        let scale = exact.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for (i, x) in exact.iter().enumerate() {
+            // Jacobi to a change of 1e-12 per sweep, f32 factors and node values: the
+            // solutions agree to f32 resolution of the largest value.
+            let got = s.radiosity[i][channel];
+            assert!(
+                (got - x).abs() <= 1e-5 * scale,
+                "element {i} channel {channel}: {got} vs {x}"
+            );
+        }
+    }
+}
+
+#[test]
+fn push_pull_hands_the_leaves_the_power_the_nodes_gathered() {
+    let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
+    s.run(None, crate::cancel::never()).unwrap();
+    let mut h = s.hierarchy.take().unwrap();
+    h.pull(&s.mesh, &s.radiosity);
+    h.gather();
+    let down = h.cluster_down();
+    let mesh = &s.mesh;
+    // Gathered: every surface node's mean H (its linear function's mean over it) times
+    // its area, and every cluster's H times the area under it.
+    let mut gathered = 0.0f64;
+    for (n, corners) in h.node_h.iter().enumerate() {
+        let mean = (corners[0] + corners[1] + corners[2]) / 3.0;
+        gathered += (mean.x + mean.y + mean.z) as f64 * h.node_area[n] as f64;
+    }
+    for (c, hc) in h.cluster_h.iter().enumerate() {
+        gathered += (hc.x + hc.y + hc.z) as f64 * h.clusters.nodes[c].area as f64;
+    }
+    let pushed: f64 = (0..mesh.elements.len())
+        .map(|e| {
+            let v = h.leaf_irradiance_linear(mesh, e, &down);
+            (v.x + v.y + v.z) as f64 * mesh.elements[e].area as f64
+        })
+        .sum();
+    assert!(
+        gathered > 0.0 && h.links.len() > 100,
+        "{} links",
+        h.links.len()
+    );
+    // f32 node values and areas summed over ~10⁴ terms: 1e-4 relative.
+    assert!(
+        (pushed - gathered).abs() <= 1e-4 * gathered,
+        "pushed {pushed} vs gathered {gathered}"
+    );
+}

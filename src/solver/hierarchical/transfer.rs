@@ -1,0 +1,307 @@
+//! The transfer a link carries and the kernel variation the oracle judges it by.
+//!
+//! A link from source s to receiver r adds `F · B_s` to the irradiance r gathers
+//! (B_r = E'_r + ρ_r H_r, H_r = Σ F · B_s), F the form factor from points of the receiver
+//! to the source times visibility, kept at the receiver's three quadrature points so that
+//! the receiver gets it as a linear function (see `Link::corners`):
+//!
+//! - surface ← surface: Lambert's exact point-to-polygon form factor
+//!   ([`point_to_polygon`], clipped to the receiver's hemisphere, zero behind the source's
+//!   front) at the three points of the degree-2 triangle rule (barycentric (2/3, 1/6, 1/6)
+//!   and permutations; Strang & Fix), each times the transmittance of shadow rays to
+//!   stratified points of the source. The points lie halfway between the centroid and the
+//!   corners; the receiver gets the linear function through them, and the link's `spread`
+//!   is what that function may miss: how far the kernel at the centroid bends away from it,
+//!   plus the form factor where the shadow rays disagree (a shadow boundary crosses it).
+//! - clusters (Sillion 1995) are seen through their projected area P(ω) (see
+//!   [`projected_area`]: exact for a flat cluster, the isotropic A/4 for a closed one): a
+//!   cluster of mean radiosity B emits B·P(ω)/π W/sr towards ω, and the surfaces inside a
+//!   receiving cluster take, on average over its area A, P(ω)/A of the irradiance falling
+//!   on it from ω. For a cluster link, `spread` is the conservative bound
+//!   A_s / (π d²) of any transfer between the two bounding spheres d apart (infinite when
+//!   they overlap), so the oracle refines every cluster link that could carry much light.
+
+use super::NodeId;
+use super::clusters::SAMPLES;
+use crate::accel::Bvh;
+use crate::geometry::sampling::{hash, stratified_point};
+use crate::solver::form_factor::point_to_polygon;
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// What a node looks like to a transfer.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Shape {
+    Surface {
+        verts: [Vec3; 3],
+        normal: Vec3,
+        area: f32,
+        /// Scene triangle (skipped by its own shadow rays).
+        triangle: u32,
+    },
+    Cluster {
+        centre: Vec3,
+        radius: f32,
+        area: f32,
+        /// Σ A_i n_i of the surfaces inside.
+        area_vector: Vec3,
+        /// Points on surfaces inside it (patch centroids), their normals and triangles.
+        samples: [(Vec3, Vec3, u32); SAMPLES],
+    },
+}
+
+impl Shape {
+    pub fn centre(&self) -> Vec3 {
+        match self {
+            Shape::Surface { verts, .. } => (verts[0] + verts[1] + verts[2]) / 3.0,
+            Shape::Cluster { centre, .. } => *centre,
+        }
+    }
+
+    /// Radius of a sphere around [`Shape::centre`] holding the node.
+    pub fn radius(&self) -> f32 {
+        match self {
+            Shape::Surface { verts, .. } => {
+                let c = self.centre();
+                verts.iter().map(|v| (*v - c).length()).fold(0.0, f32::max)
+            }
+            Shape::Cluster { radius, .. } => *radius,
+        }
+    }
+
+    fn area(&self) -> f32 {
+        match self {
+            Shape::Surface { area, .. } | Shape::Cluster { area, .. } => *area,
+        }
+    }
+}
+
+/// A link's transfer at the receiver's three quadrature points, whether a shadow boundary
+/// crosses it, and the shadow rays it took.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Transfer {
+    pub values: [f32; 3],
+    /// What the linear function through `values` may miss (see the module doc).
+    pub spread: f32,
+    /// Shadow rays of the link disagree.
+    pub partial: bool,
+    pub rays: u32,
+}
+
+/// The kernel's variation over a link's ends with a cluster: the bound A_s / (π d²) of any
+/// transfer between two bounding spheres d apart (infinite when they overlap).
+pub(super) fn cluster_bound(r: &Shape, s: &Shape) -> f32 {
+    let gap = (s.centre() - r.centre()).length() - r.radius() - s.radius();
+    if gap > 0.0 {
+        s.area() / (PI * gap * gap)
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// Barycentric points of the degree-2 rule, each halfway from the centroid to a corner.
+fn quadrature(v: &[Vec3; 3]) -> [Vec3; 3] {
+    let at = |a: usize, b: usize, c: usize| v[a] * (2.0 / 3.0) + (v[b] + v[c]) * (1.0 / 6.0);
+    [at(0, 1, 2), at(1, 2, 0), at(2, 0, 1)]
+}
+
+/// Seed of a link's rays from its two ends (node ids are stable through refinement).
+fn seed(receiver: NodeId, source: NodeId) -> u64 {
+    hash(((receiver.0 as u64) << 32) ^ source.0 as u64 ^ 0x5eed_0f_11ab)
+}
+
+/// The transfer from `source` to `receiver`. `fine`: neither end can be split further, so a
+/// partly visible link is sampled with 16 strata per receiver point instead of 4.
+pub(super) fn evaluate(
+    bvh: &Bvh,
+    eps: f32,
+    (receiver, r): (NodeId, &Shape),
+    (source, s): (NodeId, &Shape),
+    fine: bool,
+) -> Transfer {
+    let seed = seed(receiver, source);
+    match (r, s) {
+        (
+            Shape::Surface {
+                verts: rv,
+                normal: rn,
+                triangle: rt,
+                ..
+            },
+            Shape::Surface {
+                verts: sv,
+                normal: sn,
+                triangle: st,
+                ..
+            },
+        ) => surface_to_surface(bvh, eps, (rv, *rn, *rt), (sv, *sn, *st), fine, seed),
+        _ => with_cluster(bvh, eps, r, s, seed),
+    }
+}
+
+fn surface_to_surface(
+    bvh: &Bvh,
+    eps: f32,
+    (rv, rn, rt): (&[Vec3; 3], Vec3, u32),
+    (sv, sn, st): (&[Vec3; 3], Vec3, u32),
+    fine: bool,
+    seed: u64,
+) -> Transfer {
+    let q = quadrature(rv);
+    let f = q.map(|x| {
+        if sn.dot(x - sv[0]) > 0.0 {
+            point_to_polygon(x, rn, sv)
+        } else {
+            0.0
+        }
+    });
+    let hi = f[0].max(f[1]).max(f[2]);
+    if hi <= 0.0 {
+        return Transfer {
+            values: [0.0; 3],
+            spread: 0.0,
+            partial: false,
+            rays: 0,
+        };
+    }
+    let skip = [rt, st];
+    let base = sv.map(|v| v + sn * eps);
+    let from = q.map(|x| x + rn * eps);
+    let clear = (0..3).all(|k| f[k] <= 0.0 || bvh.shaft_clear(from[k], &base, skip, eps * 0.1));
+    let mut rays = 0u32;
+    let (mut visible, mut vlo, mut vhi) = ([1.0f32; 3], 1.0f32, 1.0f32);
+    if !clear {
+        // k² shadow rays from each receiver point to stratified points of the source:
+        // the mean transmittance per point, and the range over all rays.
+        let sample = |k: u32, seed: u64| {
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let v = std::array::from_fn(|j| {
+                let mut sum = 0.0;
+                for i in 0..k * k {
+                    let y = stratified_point(sv, k, i, hash(seed ^ j as u64)) + sn * eps;
+                    let t = bvh.transmittance(from[j], y, skip);
+                    sum += t;
+                    lo = lo.min(t);
+                    hi = hi.max(t);
+                }
+                sum / (k * k) as f32
+            });
+            (v, lo, hi, 3 * k * k)
+        };
+        let (v, lo, hi, n) = sample(2, seed);
+        (visible, vlo, vhi, rays) = (v, lo, hi, n);
+        if fine && vhi > vlo {
+            let (v, lo, hi, n) = sample(4, hash(seed));
+            (visible, vlo, vhi, rays) = (v, lo, hi, rays + n);
+        }
+    }
+    let values: [f32; 3] = std::array::from_fn(|k| f[k] * visible[k]);
+    let mean = (values[0] + values[1] + values[2]) / 3.0;
+    let lo = values[0].min(values[1]).min(values[2]);
+    let vhi_values = values[0].max(values[1]).max(values[2]);
+    // The linear function through the three values predicts `mean` at the centroid; the
+    // kernel there (visibility taken as the mean) says how far it bends. Four times the
+    // miss at the centroid bounds the miss at the corners for a quadratic, plus a quarter of
+    // the linear spread for bends the centroid cannot see, plus the mean where a shadow
+    // boundary crosses the link.
+    let c = (rv[0] + rv[1] + rv[2]) / 3.0;
+    let fc = if sn.dot(c - sv[0]) > 0.0 {
+        point_to_polygon(c, rn, sv)
+    } else {
+        0.0
+    };
+    let mean_visible = (visible[0] + visible[1] + visible[2]) / 3.0;
+    let partial = vhi > vlo;
+    Transfer {
+        values,
+        spread: 4.0 * (fc * mean_visible - mean).abs()
+            + 0.25 * (vhi_values - lo)
+            + if partial { mean } else { 0.0 },
+        partial,
+        rays,
+    }
+}
+
+/// The area a cluster shows towards unit direction `w`: max(0, a · w) for the part of its
+/// area that is oriented (the area vector a = Σ A_i n_i) plus a quarter of the rest
+/// (isotropic). Exact for coplanar surfaces facing one way (|a| = A), Sillion's isotropic
+/// A / 4 for a closed surface (a = 0).
+fn projected_area(area: f32, area_vector: Vec3, w: Vec3) -> f32 {
+    area_vector.dot(w).max(0.0) + (area - area_vector.length()).max(0.0) * 0.25
+}
+
+/// Points standing for a node in visibility tests: (point lifted off its surface, the
+/// surface's triangle).
+fn sample_points(shape: &Shape, eps: f32, seed: u64) -> [(Vec3, u32); SAMPLES] {
+    match shape {
+        Shape::Surface {
+            verts,
+            normal,
+            triangle,
+            ..
+        } => std::array::from_fn(|i| {
+            (
+                stratified_point(verts, 2, i as u32, seed) + *normal * eps,
+                *triangle,
+            )
+        }),
+        Shape::Cluster { samples, .. } => samples.map(|(p, n, t)| (p + n * eps, t)),
+    }
+}
+
+fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
+    let (cr, cs) = (r.centre(), s.centre());
+    let d = (cs - cr).length();
+    let unoccluded = if d <= 0.0 {
+        0.0
+    } else {
+        let towards = (cs - cr) / d;
+        let emitted = match s {
+            // Intensity per unit radiosity towards the receiver: projected area / π.
+            Shape::Surface { normal, area, .. } => area * normal.dot(-towards).max(0.0) / PI,
+            Shape::Cluster {
+                area, area_vector, ..
+            } => projected_area(*area, *area_vector, -towards) / PI,
+        };
+        let received = match r {
+            Shape::Surface { normal, .. } => normal.dot(towards).max(0.0),
+            Shape::Cluster {
+                area, area_vector, ..
+            } => projected_area(*area, *area_vector, towards) / area,
+        };
+        emitted * received / (d * d)
+    };
+    if unoccluded <= 0.0 || !unoccluded.is_finite() {
+        return Transfer {
+            values: [0.0; 3],
+            spread: cluster_bound(r, s),
+            partial: false,
+            rays: 0,
+        };
+    }
+    let from = sample_points(r, eps, seed);
+    let to = sample_points(s, eps, hash(seed));
+    let through: f32 = (0..SAMPLES)
+        .map(|i| bvh.transmittance(from[i].0, to[i].0, [from[i].1, to[i].1]))
+        .sum();
+    Transfer {
+        values: [unoccluded * through / SAMPLES as f32; 3],
+        spread: cluster_bound(r, s),
+        partial: false,
+        rays: SAMPLES as u32,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quadrature_points_lie_halfway_between_centroid_and_corners() {
+        let v = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let c = (v[0] + v[1] + v[2]) / 3.0;
+        for (k, q) in quadrature(&v).into_iter().enumerate() {
+            assert!((q - (c + v[k]) * 0.5).length() < 1e-6);
+        }
+    }
+}
