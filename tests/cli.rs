@@ -69,14 +69,25 @@ fn solve_writes_stats_and_a_baked_glb() {
         "iterations",
         "rays",
         "seconds",
-        "unshot_fraction",
         "residual",
-        "energy_balance",
+        "links",
+        "link_bytes",
+        "first_solution_seconds",
     ] {
         assert!(stats.get(key).is_some(), "stats lack {key}: {stats}");
     }
+    assert_eq!(stats["method"], "hierarchical", "the default method");
     assert_eq!(stats["converged"], true);
-    assert!(stats["unshot_fraction"].as_f64().unwrap() <= 1e-3);
+    // Converged: the last sweep changed B by at most the tolerance (1e-3) scaled by
+    // 1 − ρ̄ ≤ 1.
+    assert!(stats["residual"].as_f64().unwrap() <= 1e-3);
+    // 24 bytes a link.
+    assert_eq!(
+        stats["link_bytes"].as_u64().unwrap(),
+        24 * stats["links"].as_u64().unwrap()
+    );
+    let first = stats["first_solution_seconds"].as_f64().unwrap();
+    assert!(first > 0.0 && first <= stats["seconds"].as_f64().unwrap());
     let glb = std::fs::read(d.join("baked.glb")).unwrap();
     assert_eq!(&glb[0..4], b"glTF");
     assert_eq!(

@@ -24,8 +24,8 @@ pub struct LightOptions {
 /// Options shared by every command that solves.
 #[derive(Args, Debug, Clone)]
 pub struct SolveOptions {
-    /// progressive (default), jacobi, gauss-seidel, stochastic-jacobi or direct. The viewer,
-    /// when none is given, takes stochastic-jacobi for scenes over 100,000 elements.
+    /// hierarchical (default), progressive, jacobi, gauss-seidel, stochastic-jacobi or
+    /// direct. When none is given, scenes over 100,000 elements get stochastic-jacobi.
     #[arg(long)]
     pub method: Option<Method>,
     /// Stop when the unshot fraction (progressive) or relative residual falls below this.
@@ -130,10 +130,25 @@ impl SolveOptions {
         }
     }
 
+    /// The solver settings for the mesh of `prepared`: [`SolveOptions::solver_settings`],
+    /// except that with no `--method` a mesh of more than
+    /// [`AUTO_STOCHASTIC_ELEMENTS`](crate::worker::AUTO_STOCHASTIC_ELEMENTS) elements gets
+    /// stochastic Jacobi, as in the viewer (the hierarchical solver's first refinement
+    /// of Sponza does not finish in minutes yet).
+    pub fn solver_settings_for(&self, prepared: &crate::pipeline::Prepared) -> SolverSettings {
+        let mut s = self.solver_settings();
+        if self.method.is_none()
+            && prepared.mesh.elements.len() > crate::worker::AUTO_STOCHASTIC_ELEMENTS
+        {
+            s.method = Method::StochasticJacobi;
+        }
+        s
+    }
+
     /// The solver settings these options ask for.
     pub fn solver_settings(&self) -> SolverSettings {
         let mut s = SolverSettings {
-            method: self.method.unwrap_or(Method::Progressive),
+            method: self.method.unwrap_or(Method::Hierarchical),
             tolerance: self.tolerance,
             ..Default::default()
         };

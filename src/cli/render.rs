@@ -21,7 +21,7 @@ pub fn render(
 ) -> Result<()> {
     let s = load_scene(scene, options, quiet)?;
     let prepared = prepare(&s, options, quiet);
-    let mut solver = prepared.solver(options.solver_settings())?;
+    let mut solver = prepared.solver(options.solver_settings_for(&prepared))?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;
     render_png(
         solver.mesh(),

@@ -101,7 +101,7 @@ pub struct HierarchySettings {
 impl Default for HierarchySettings {
     fn default() -> Self {
         HierarchySettings {
-            link_error: 0.05,
+            link_error: 0.02,
             clustering: true,
             min_size: None,
             max_elements: 2_000_000,

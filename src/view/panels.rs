@@ -187,6 +187,17 @@ impl App {
                 s.residual.map_or("–".into(), |u| format!("{u:.2e}")),
             );
             row("elapsed", format!("{:.2} s", s.seconds));
+            if let (Some(links), Some(bytes)) = (s.links, s.link_bytes) {
+                row("links", links.to_string());
+                row("link memory", format!("{:.1} MB", bytes as f64 / 1e6));
+                row(
+                    "oracle ε",
+                    format!("{}", self.solver_settings.hierarchy.link_error),
+                );
+            }
+            if let Some(t) = s.first_solution_seconds {
+                row("first solution", format!("{t:.2} s"));
+            }
             if let Some(l) = self.session.edits.edit_latency {
                 row(
                     "last edit to frame",
@@ -416,8 +427,35 @@ impl App {
             )
             .labelled_by(label.id);
         });
+        if s.method == Method::Hierarchical {
+            let h = &mut s.hierarchy;
+            ui.horizontal(|ui| {
+                let label = ui.label("link error ε");
+                let speed = h.link_error * 0.05;
+                ui.add(
+                    egui::DragValue::new(&mut h.link_error)
+                        .range(1e-4..=1.0)
+                        .speed(speed)
+                        .max_decimals(4),
+                )
+                .labelled_by(label.id);
+            });
+            ui.horizontal(|ui| {
+                let label = ui.label("min element size (m, 0 = auto)");
+                let mut m = h.min_size.unwrap_or(0.0);
+                ui.add(
+                    egui::DragValue::new(&mut m)
+                        .range(0.0..=1e6)
+                        .speed(0.001)
+                        .max_decimals(4),
+                )
+                .labelled_by(label.id);
+                h.min_size = (m > 0.0).then_some(m);
+            });
+            ui.checkbox(&mut h.clustering, "Clustering");
+        }
         let mut adaptive = s.adaptive.is_some();
-        ui.checkbox(&mut adaptive, "Adaptive subdivision");
+        ui.checkbox(&mut adaptive, "Adaptive subdivision (flat methods)");
         if adaptive != s.adaptive.is_some() {
             s.adaptive = adaptive.then(crate::mesh::AdaptiveSettings::default);
         }

@@ -117,6 +117,36 @@ impl Link {
     }
 }
 
+/// Irradiance arriving at a cluster from many directions, kept per axis direction (±x,
+/// ±y, ±z) as what a surface facing that way would receive: irradiance E from unit
+/// direction ω adds E · max(0, ±ω_a) to the faces of its octant. A surface with normal n
+/// inside takes Σ_a |n_a| · C(sign n_a, a), which is E · (n · ω) exactly when n and ω lie
+/// in the same octant and nothing when n faces away from every source, so a box's lit
+/// and unlit faces get different light from one cluster link.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Octants([Vec3; 6]);
+
+impl Octants {
+    fn face(axis: usize, positive: bool) -> usize {
+        2 * axis + usize::from(!positive)
+    }
+    fn add(&mut self, e: Vec3, w: Vec3) {
+        for a in 0..3 {
+            self.0[Self::face(a, w[a] >= 0.0)] += e * w[a].abs();
+        }
+    }
+    fn merge(&mut self, o: &Octants) {
+        for k in 0..6 {
+            self.0[k] += o.0[k];
+        }
+    }
+    fn at(&self, n: Vec3) -> Vec3 {
+        (0..3)
+            .map(|a| self.0[Self::face(a, n[a] >= 0.0)] * n[a].abs())
+            .fold(Vec3::ZERO, |x, y| x + y)
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
     Refine,
@@ -137,7 +167,8 @@ pub(super) struct Hierarchy {
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
     cluster_b: Vec<Vec3>,
-    cluster_h: Vec<Vec3>,
+    /// Irradiance a cluster receives, by direction: see [`Octants`].
+    cluster_h: Vec<Octants>,
     /// The leaf node of each element.
     element_node: Vec<u32>,
     /// Largest reflectance channel per patch (edits change it).
@@ -171,7 +202,7 @@ impl Hierarchy {
             .collect();
         let mut h = Hierarchy {
             cluster_b: vec![Vec3::ZERO; clusters.nodes.len()],
-            cluster_h: vec![Vec3::ZERO; clusters.nodes.len()],
+            cluster_h: vec![Octants::default(); clusters.nodes.len()],
             clusters,
             links: Vec::new(),
             parent: Vec::new(),
@@ -270,42 +301,61 @@ impl Hierarchy {
         }
     }
 
-    /// Gathers H at every receiver over its links (at a surface node's corners; one value
-    /// for a cluster).
-    fn gather(&mut self) {
-        let sums: Vec<(NodeId, [Vec3; 3])> = self
+    /// Gathers H at every receiver over its links (at a surface node's corners; by
+    /// direction for a cluster).
+    fn gather(&mut self, mesh: &Mesh) {
+        let centre = |id: NodeId| match id.cluster() {
+            Some(c) => self.clusters.nodes[c].centre,
+            None => {
+                let v = &mesh.nodes[id.0 as usize].verts;
+                (v[0] + v[1] + v[2]) / 3.0
+            }
+        };
+        let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
             .links
             .par_chunk_by(|a, b| a.receiver == b.receiver)
             .map(|group| {
+                let r = group[0].receiver;
                 let mut h = [Vec3::ZERO; 3];
-                for l in group {
-                    let b = self.b(l.source);
-                    let c = l.corners();
-                    for k in 0..3 {
-                        h[k] += b * c[k];
+                let mut o = Octants::default();
+                if r.cluster().is_some() {
+                    let at = centre(r);
+                    for l in group {
+                        let e = self.b(l.source) * l.factor();
+                        o.add(e, (centre(l.source) - at).normalize_or_zero());
+                    }
+                } else {
+                    for l in group {
+                        let b = self.b(l.source);
+                        let c = l.corners();
+                        for k in 0..3 {
+                            h[k] += b * c[k];
+                        }
                     }
                 }
-                (group[0].receiver, h)
+                (r, h, o)
             })
             .collect();
         self.node_h.iter_mut().for_each(|h| *h = [Vec3::ZERO; 3]);
-        self.cluster_h.iter_mut().for_each(|h| *h = Vec3::ZERO);
-        for (r, h) in sums {
+        self.cluster_h
+            .iter_mut()
+            .for_each(|h| *h = Octants::default());
+        for (r, h, o) in sums {
             match r.cluster() {
-                Some(c) => self.cluster_h[c] = h[0],
+                Some(c) => self.cluster_h[c] = o,
                 None => self.node_h[r.0 as usize] = h,
             }
         }
     }
 
     /// H pushed down the clusters: each cluster's own plus its ancestors'.
-    fn cluster_down(&self) -> Vec<Vec3> {
+    fn cluster_down(&self) -> Vec<Octants> {
         let mut down = self.cluster_h.clone();
         for c in 0..down.len() {
             let p = self.clusters.nodes[c].parent;
             if p != NONE {
                 let above = down[p as usize];
-                down[c] += above;
+                down[c].merge(&above);
             }
         }
         down
@@ -314,7 +364,7 @@ impl Hierarchy {
     /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
     /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
     /// receive, area-weighted, exactly what it gathered: push conserves power).
-    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &[Vec3]) -> Vec3 {
+    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
         let mut node = self.element_node[element];
         let x = mesh.elements[element].centroid();
         let mut h = Vec3::ZERO;
@@ -326,14 +376,14 @@ impl Hierarchy {
         }
         let c = self.clusters.patch_parent[mesh.elements[element].patch as usize];
         if c != NONE {
-            h += down[c as usize];
+            h += down[c as usize].at(mesh.elements[element].normal);
         }
         h
     }
 
     /// [`Hierarchy::leaf_irradiance_linear`] with the negative values that extrapolated
     /// linear functions can reach (beside a shadow boundary) cut off at zero.
-    fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Vec3]) -> Vec3 {
+    fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
         self.leaf_irradiance_linear(mesh, element, down)
             .max(Vec3::ZERO)
     }
@@ -391,7 +441,7 @@ impl Solver {
     fn sweep(&mut self, h: &mut Hierarchy) -> f64 {
         let mesh = &self.mesh;
         h.pull(mesh, &self.radiosity);
-        h.gather();
+        h.gather(mesh);
         let down = h.cluster_down();
         let (source, reflectance) = (&self.source, &self.reflectance);
         let new: Vec<DVec3> = (0..mesh.elements.len())

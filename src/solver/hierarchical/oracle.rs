@@ -13,6 +13,11 @@
 //! is involved; a cluster linked to itself splits both ends). A leaf that must split and is
 //! at least twice the minimum size is split in the mesh first, all such leaves at once.
 //!
+//! A receiver's links are also judged together: near its corners their linear transfers
+//! can miss the kernel all the same way, so a receiver whose links together miss by more
+//! than the threshold is split even when each link is within it (see
+//! `View::receiver_overloaded`).
+//!
 //! Refinement runs in generations (every link decided in parallel, the new links evaluated
 //! in parallel) until no link needs it, so one round refines as deep as the current
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
@@ -21,6 +26,7 @@ use super::transfer::{self, Shape, Transfer};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
 use crate::mesh::Mesh;
+use crate::solver::form_factor::point_to_polygon;
 use crate::solver::refine::remap;
 use crate::solver::types::Stop;
 use crate::solver::{Method, Solver, external_factor};
@@ -139,21 +145,81 @@ impl View<'_> {
         (hi - lo).max(0.0)
     }
 
-    fn decide(&self, l: &Link) -> Decision {
-        if l.receiver.cluster().is_some() {
-            // Clusters send but do not receive: a cluster would hand the same irradiance
-            // to surfaces facing every way (a box's lit and unlit faces alike), so links
-            // always end on surfaces, which take the light with their own orientation.
-            return if l.receiver == l.source {
-                Decision::Both
-            } else {
-                Decision::Receiver
-            };
+    /// The kernel part of a link's error estimate, ρ_r · spread · B_s.
+    fn kernel_error(&self, l: &Link) -> f32 {
+        self.reflectance(l.receiver) * l.spread * self.h.b(l.source).max_element()
+    }
+
+    /// Splits the receiver of a group of links whose linear transfers together miss the
+    /// kernel by more than the threshold near the receiver's corners. Each link is within
+    /// the threshold on its own, but their misses can add up (the kernels over one receiver
+    /// bend alike where its other links moved to its children), so the sum
+    /// ρ_r · |Σ_l B_l (F_l(x) − L_l(x))| is checked at points 90 % of the way from the
+    /// centroid to each corner, F_l the exact unoccluded form factor there times the link's
+    /// visibility (its transfer over its unoccluded one) and L_l its linear function.
+    fn receiver_overloaded(&self, group: &[Link]) -> Option<Decision> {
+        let r = group[0].receiver;
+        if group.len() < 2 || r.cluster().is_some() {
+            return None;
         }
+        let node = &self.mesh.nodes[r.0 as usize];
+        let normal = self.mesh.patches[self.h.node_patch[r.0 as usize] as usize].normal;
+        let v = node.verts;
+        let c = (v[0] + v[1] + v[2]) / 3.0;
+        let points = v.map(|p| c + (p - c) * 0.9);
+        let q = v.map(|p| c + (p - c) * 0.5); // the quadrature points (see `transfer`)
+        let mut miss = [Vec3::ZERO; 3];
+        for l in group {
+            let Some(source) =
+                (l.source.cluster().is_none()).then(|| self.mesh.nodes[l.source.0 as usize].verts)
+            else {
+                continue;
+            };
+            let sn = self.mesh.patches[self.h.node_patch[l.source.0 as usize] as usize].normal;
+            let f = |x: Vec3| {
+                if sn.dot(x - source[0]) > 0.0 {
+                    point_to_polygon(x, normal, &source)
+                } else {
+                    0.0
+                }
+            };
+            let unoccluded: f32 = q.iter().map(|x| f(*x)).sum::<f32>() / 3.0;
+            if unoccluded <= 0.0 {
+                continue;
+            }
+            let visible = (l.factor() / unoccluded).min(1.0);
+            let b = self.h.b(l.source);
+            let corners = l.corners();
+            for (k, x) in points.iter().enumerate() {
+                // The linear function at 90 % towards corner k: 0.9 a_k + 0.05 (others),
+                // plus the centroid's share.
+                let linear = corners[k] * (0.1 / 3.0 + 0.9)
+                    + (corners[(k + 1) % 3] + corners[(k + 2) % 3]) * (0.1 / 3.0);
+                miss[k] += b * (f(*x) * visible - linear);
+            }
+        }
+        let rho = self.reflectance(r);
+        let worst = miss
+            .iter()
+            .map(|m| m.abs().max_element())
+            .fold(0.0, f32::max)
+            * rho;
+        if worst.is_nan() || worst <= self.threshold {
+            return None;
+        }
+        if node.children.is_some() {
+            Some(Decision::Receiver)
+        } else if self.leaf_can_split(r.0) {
+            Some(Decision::Leaf(r.0))
+        } else {
+            None
+        }
+    }
+
+    fn decide(&self, l: &Link) -> Decision {
         let rho = self.reflectance(l.receiver);
-        let b = self.h.b(l.source).max_element();
         let (r, s) = (self.shape(l.receiver), self.shape(l.source));
-        let kernel = rho * l.spread * b;
+        let kernel = self.kernel_error(l);
         // Averaging B over the source errs by ΔB_s times how much the kernel varies across
         // the source, about its radius over the distance (at most 1).
         let d = (r.centre() - s.centre()).length();
@@ -173,7 +239,8 @@ impl View<'_> {
             self.threshold
         };
         // NaN (an infinite spread carrying nothing) keeps the link.
-        if !(kernel + variation > threshold) {
+        let error = kernel + variation;
+        if error.is_nan() || error <= threshold {
             return Decision::Keep;
         }
         if l.receiver == l.source {
@@ -391,7 +458,7 @@ impl Solver {
                 let coarse = 16.0 / 4f32.powi(h.rounds.min(2) as i32);
                 let threshold = self.held_threshold(h) * coarse.max(1.0);
                 h.rounds += 1;
-                if !(threshold > 0.0) {
+                if threshold.is_nan() || threshold <= 0.0 {
                     h.links.sort_unstable_by_key(|l| (l.receiver, l.source));
                     return Ok(Some(changed));
                 }
@@ -458,7 +525,18 @@ impl Solver {
         }
         if !round.work.is_empty() {
             // Decide a generation.
-            let decisions: Vec<Decision> = round.work.par_iter().map(|l| view.decide(l)).collect();
+            round.work.sort_unstable_by_key(|l| (l.receiver, l.source));
+            let decisions: Vec<Decision> = round
+                .work
+                .par_chunk_by(|a, b| a.receiver == b.receiver)
+                .flat_map_iter(|group| {
+                    let view = &view;
+                    let overloaded = view.receiver_overloaded(group);
+                    group
+                        .iter()
+                        .map(move |l| overloaded.unwrap_or_else(|| view.decide(l)))
+                })
+                .collect();
             for (l, d) in round.work.iter().zip(&decisions) {
                 match d {
                     Decision::Keep => round.kept.push(*l),

@@ -13,11 +13,13 @@
 //!   corners; the receiver gets the linear function through them, and the link's `spread`
 //!   is what that function may miss: how far the kernel at the centroid bends away from it,
 //!   plus the form factor where the shadow rays disagree (a shadow boundary crosses it).
+//!   Near a corner or a contact, where the kernel rises faster than three points follow,
+//!   the oracle also judges a receiver's links together (`oracle`).
 //! - clusters (Sillion 1995) are seen through their projected area P(ω) (see
 //!   [`projected_area`]: exact for a flat cluster, the isotropic A/4 for a closed one): a
-//!   cluster of mean radiosity B emits B·P(ω)/π W/sr towards ω, and the surfaces inside a
-//!   receiving cluster take, on average over its area A, P(ω)/A of the irradiance falling
-//!   on it from ω. For a cluster link, `spread` is the conservative bound
+//!   cluster of mean radiosity B emits B·P(ω)/π W/sr towards ω; a receiving cluster's
+//!   factor is the irradiance on a plane facing the source, shared out to its surfaces by
+//!   their orientation when it is pushed down (`Octants`). For a cluster link, `spread` is the conservative bound
 //!   A_s / (π d²) of any transfer between the two bounding spheres d apart (infinite when
 //!   they overlap), so the oracle refines every cluster link that could carry much light.
 
@@ -107,7 +109,7 @@ fn quadrature(v: &[Vec3; 3]) -> [Vec3; 3] {
 
 /// Seed of a link's rays from its two ends (node ids are stable through refinement).
 fn seed(receiver: NodeId, source: NodeId) -> u64 {
-    hash(((receiver.0 as u64) << 32) ^ source.0 as u64 ^ 0x5eed_0f_11ab)
+    hash(((receiver.0 as u64) << 32) ^ source.0 as u64 ^ 0x005e_ed0f_11ab)
 }
 
 /// The transfer from `source` to `receiver`. `fine`: neither end can be split further, so a
@@ -263,11 +265,11 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
                 area, area_vector, ..
             } => projected_area(*area, *area_vector, -towards) / PI,
         };
+        // A receiving cluster takes the irradiance on a plane facing the source; its
+        // surfaces each take their share by orientation (see `Octants`).
         let received = match r {
             Shape::Surface { normal, .. } => normal.dot(towards).max(0.0),
-            Shape::Cluster {
-                area, area_vector, ..
-            } => projected_area(*area, *area_vector, towards) / area,
+            Shape::Cluster { .. } => 1.0,
         };
         emitted * received / (d * d)
     };
