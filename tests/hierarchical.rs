@@ -25,7 +25,8 @@ fn solve(scene: &Scene, hierarchy: HierarchySettings) -> Solver {
 }
 
 fn solve_to(scene: &Scene, hierarchy: HierarchySettings, tolerance: f64) -> Solver {
-    let mut s = prepared(scene, 3000)
+    // 1000 starting elements: the hierarchy refines below them where the light asks.
+    let mut s = prepared(scene, 1000)
         .solver(SolverSettings {
             tolerance,
             ..settings(hierarchy)
@@ -72,8 +73,8 @@ fn furnace_at_rho_099_is_exact_with_clustering_on() {
     // ε · B̄: 1 % at ε = 0.01. The box must do ten times better (0.1 %, the issue's
     // figure): its faces are flat and its links mostly end on whole faces. The 320-facet
     // sphere, whose every facet sees every other at a different angle, is held to the
-    // bound. Swept to 1e-5, so what the sweeps leave (about tolerance · ρ / (1 − ρ) of B
-    // before the scaling) is far below either.
+    // bound. Swept to 1e-4, so what the sweeps leave (about the tolerance, 1e-4 of B, as
+    // their stopping is scaled by 1 − ρ̄) is far below either.
     let hierarchy = HierarchySettings {
         link_error: 0.01,
         ..Default::default()
@@ -88,7 +89,7 @@ fn furnace_at_rho_099_is_exact_with_clustering_on() {
             1e-2,
         ),
     ] {
-        let s = solve_to(&scene, hierarchy.clone(), 1e-5);
+        let s = solve_to(&scene, hierarchy.clone(), 1e-4);
         assert!(s.stats().links.unwrap() > 0);
         let b = s.radiosity();
         let worst = b
@@ -104,7 +105,7 @@ fn clustering_on_and_off_agree_within_the_oracle_bound() {
     // Both solves refine until no link's estimated error exceeds ε · B̄ · (1 − ρ̄); they
     // differ by what each approximation leaves, a few ε of the mean. Tolerance: 3 ε.
     let scene = builtin::cornell_box();
-    let eps = 0.01;
+    let eps = 0.02;
     let h = |clustering| HierarchySettings {
         link_error: eps,
         clustering,

@@ -417,7 +417,7 @@ impl Solver {
             Stage::Refine => match self.refine_piece(h, cancel)? {
                 None => {}
                 // Done when a round at the full threshold changed nothing.
-                Some(false) if h.sweeps > 0 && h.rounds > 2 => self.phase = super::Phase::Done,
+                Some(false) if h.sweeps > 0 => self.phase = super::Phase::Done,
                 Some(_) => h.stage = Stage::Sweep,
             },
             Stage::Sweep => {

@@ -42,6 +42,13 @@ const CLUSTER_STRICTNESS: f32 = 16.0;
 #[derive(Default)]
 pub(super) struct Round {
     threshold: f32,
+    /// Before the first sweep only the emitters have light, so every other link would stay
+    /// at the top, where cluster transfers are coarsest (the first solution came out 50 %
+    /// too bright on the Cornell box). The first round takes each source's B to be its
+    /// E' plus ρ_s times the ambient radiosity the scene will reach, Σ A E' / Σ A ·
+    /// ρ̄ / (1 − ρ̄) (the ambient term of Cohen et al. 1988), so it links as the lit scene
+    /// needs; later rounds use the solution itself.
+    ambient: f32,
     /// Links decided to stay.
     kept: Vec<Link>,
     /// Links to decide (the next generation).
@@ -74,6 +81,8 @@ struct View<'a> {
     mesh: &'a Mesh,
     min_size: f64,
     threshold: f32,
+    /// The light a source is expected to reflect before any sweep (see `Round::ambient`).
+    ambient: f32,
 }
 
 impl View<'_> {
@@ -146,8 +155,14 @@ impl View<'_> {
     }
 
     /// The kernel part of a link's error estimate, ρ_r · spread · B_s.
+    /// The radiosity the oracle takes for a source: its B, plus before the first sweep
+    /// the ambient it will reflect.
+    fn source_b(&self, s: NodeId) -> f32 {
+        self.h.b(s).max_element() + self.reflectance(s) * self.ambient
+    }
+
     fn kernel_error(&self, l: &Link) -> f32 {
-        self.reflectance(l.receiver) * l.spread * self.h.b(l.source).max_element()
+        self.reflectance(l.receiver) * l.spread * self.source_b(l.source)
     }
 
     /// Splits the receiver of a group of links whose linear transfers together miss the
@@ -231,15 +246,22 @@ impl View<'_> {
         let variation = rho * l.factor() * self.source_variation(l.source) * across;
         // A cluster's transfer errs the same way on every link (the far-field kernel of a
         // nearby cluster is low, as the mean of 1/r² exceeds 1/r̄²), so its errors add up
-        // over a receiver's cluster links instead of averaging out: they are held to a
-        // sixteenth of the threshold.
-        let threshold = if l.source.cluster().is_some() {
+        // over a receiver's cluster links instead of averaging out, and a receiving
+        // cluster shares its light out by an approximate orientation (`Octants`): links
+        // with a cluster at either end are held to a sixteenth of the threshold.
+        let threshold = if l.source.cluster().is_some() || l.receiver.cluster().is_some() {
             self.threshold / CLUSTER_STRICTNESS
         } else {
             self.threshold
         };
-        // NaN (an infinite spread carrying nothing) keeps the link.
-        let error = kernel + variation;
+        // Ends whose bounding spheres overlap (a cluster and itself, or two that
+        // interpenetrate) have no bound at all: they always split, even before their
+        // source carries light, or the light between them would be lost until it did.
+        let error = if l.spread.is_infinite() && rho > 0.0 {
+            f32::INFINITY
+        } else {
+            kernel + variation
+        };
         if error.is_nan() || error <= threshold {
             return Decision::Keep;
         }
@@ -372,6 +394,7 @@ impl Solver {
             mesh: &self.mesh,
             min_size,
             threshold: 0.0,
+            ambient: 0.0,
         };
         let pairs: Vec<(NodeId, NodeId)> = if self.settings.hierarchy.clustering {
             if h.clusters.nodes.is_empty() {
@@ -424,6 +447,20 @@ impl Solver {
         h.threshold
     }
 
+    /// Σ A E' / Σ A · ρ̄ / (1 − ρ̄) (largest channels): see `Round::ambient`.
+    fn ambient_estimate(&self) -> f32 {
+        let (mut e, mut area) = (0.0f64, 0.0f64);
+        for (el, s) in self.mesh.elements.iter().zip(&self.source) {
+            e += s.max_element() as f64 * el.area as f64;
+            area += el.area as f64;
+        }
+        if area <= 0.0 {
+            return 0.0;
+        }
+        let rho = self.mean_reflectance().min(0.999);
+        (e / area * rho / (1.0 - rho)) as f32
+    }
+
     /// The smallest element the hierarchy may make.
     pub(super) fn hierarchy_min_size(&self) -> f64 {
         self.settings
@@ -453,17 +490,23 @@ impl Solver {
                     changed = true;
                 }
                 h.pull(&self.mesh, &self.radiosity);
-                // Streaming: the first rounds refine to a coarser threshold (16 ε, 4 ε),
-                // so a whole-scene solution comes early and then sharpens.
-                let coarse = 16.0 / 4f32.powi(h.rounds.min(2) as i32);
-                let threshold = self.held_threshold(h) * coarse.max(1.0);
+                // Every round refines to the full threshold: a first round at 4 ε or 16 ε
+                // came out 50 % too bright on the Cornell box (its surviving cluster links
+                // overestimate), worse than waiting for the first full round.
+                let threshold = self.held_threshold(h);
                 h.rounds += 1;
                 if threshold.is_nan() || threshold <= 0.0 {
                     h.links.sort_unstable_by_key(|l| (l.receiver, l.source));
                     return Ok(Some(changed));
                 }
+                let ambient = if h.sweeps == 0 {
+                    self.ambient_estimate()
+                } else {
+                    0.0
+                };
                 Round {
                     threshold,
+                    ambient,
                     work: std::mem::take(&mut h.links),
                     changed,
                     ..Default::default()
@@ -503,6 +546,7 @@ impl Solver {
             mesh: &self.mesh,
             min_size,
             threshold: round.threshold,
+            ambient: round.ambient,
         };
         if round.next_pair < round.pairs.len() {
             // Evaluate the next chunk of new links.
