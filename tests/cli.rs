@@ -282,3 +282,44 @@ fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
     // A second bench reuses it.
     assert!(run().contains("cached"));
 }
+
+#[test]
+fn bench_edits_writes_one_row_per_edit() {
+    // The format the issue fixes (material,first_update_ms,converged_ms), one row per
+    // edit; the first update can only come before convergence again, and every material
+    // named is one the scene has.
+    let d = scratch_dir("cli-bench-edits");
+    let out = bin()
+        .args([
+            "bench",
+            "builtin:cornell",
+            "--quiet",
+            "--edits",
+            "3",
+            "--max-elements",
+            "300",
+            "--link-error",
+            "0.1",
+            "--out",
+        ])
+        .arg(&d)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(d.join("edits.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("material,first_update_ms,converged_ms"));
+    let materials = radiosity::scene::builtin::cornell_box().materials.len();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3);
+    for r in rows {
+        assert!((r[0] as usize) < materials, "{r:?}");
+        assert!(r[1] > 0.0 && r[1] <= r[2], "{r:?}");
+    }
+}

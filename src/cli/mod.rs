@@ -5,6 +5,7 @@
 //! The viewer and `render` exist only with the `viewer` cargo feature (on by default).
 
 mod bench;
+mod bench_edits;
 pub mod csv;
 pub mod options;
 mod probe;
@@ -164,6 +165,11 @@ pub enum Command {
         /// Segments for --occlusion.
         #[arg(long, default_value_t = 1_000_000)]
         segments: usize,
+        /// Measure material edits instead: after convergence, N reflectance changes of
+        /// ±30 % on materials drawn with a fixed seed, one at a time; writes DIR/edits.csv
+        /// (material,first_update_ms,converged_ms).
+        #[arg(long)]
+        edits: Option<usize>,
         #[command(flatten)]
         options: SolveOptions,
     },
@@ -336,6 +342,7 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             occlusion,
             segments,
+            edits,
             options,
         } => {
             let s = load_scene(&scene, &options, quiet)?;
@@ -343,6 +350,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 return bench::occlusion(&s, segments);
             }
             let out = out.context("bench needs --out DIR (or --occlusion)")?;
+            if let Some(n) = edits {
+                return bench_edits::edits(&s, &options, n.max(1), &out, quiet);
+            }
             // --time-limit applies per method here; 60 s when not given.
             let time_limit = options.time_limit.unwrap_or(60.0);
             bench::convergence(&s, &options, methods, &reference, time_limit, &out, quiet)
