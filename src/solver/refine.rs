@@ -17,7 +17,7 @@ use std::sync::atomic::AtomicBool;
 /// form factors to the patches needed, rays cast.
 type Evaluated = (Vec3, DVec3, Vec<(u32, f32)>, u64);
 
-pub(super) fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Vec<T> {
+fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Vec<T> {
     let mut out = vec![T::default(); n];
     for (old, m) in moved.iter().enumerate() {
         match m {
@@ -28,7 +28,30 @@ pub(super) fn remap<T: Copy + Default>(v: &[T], moved: &[Moved], n: usize) -> Ve
     out
 }
 
+/// The new elements of a refinement, in order.
+pub(super) fn split_children(moved: &[Moved]) -> Vec<u32> {
+    moved
+        .iter()
+        .flat_map(|m| match m {
+            Moved::Split(kids) => kids.to_vec(),
+            Moved::Kept(_) => Vec::new(),
+        })
+        .collect()
+}
+
 impl Solver {
+    /// Carries every per-element array over a refinement of the mesh to `n` elements
+    /// (children start from their parent's values).
+    pub(super) fn carry_elements(&mut self, moved: &[Moved], n: usize) {
+        self.radiosity = remap(&self.radiosity, moved, n);
+        self.unshot = remap(&self.unshot, moved, n);
+        self.gathered = remap(&self.gathered, moved, n);
+        self.source = remap(&self.source, moved, n);
+        self.reflectance = remap(&self.reflectance, moved, n);
+        self.emission = remap(&self.emission, moved, n);
+        self.external_in = remap(&self.external_in, moved, n);
+    }
+
     /// One pass of a-posteriori adaptive subdivision on a converged solve (see
     /// [`crate::mesh::AdaptiveSettings`]); returns whether the mesh changed (`Err(Cancelled)`: it did not), in which case
     /// the solve goes on from where it was.
@@ -67,25 +90,13 @@ impl Solver {
         mesh.mark_hard_shadows(&self.bvh, &self.external, min_size);
         let mesh = Arc::new(mesh);
         let n = mesh.elements.len();
-        let children: Vec<u32> = moved
-            .iter()
-            .flat_map(|m| match m {
-                Moved::Split(kids) => kids.to_vec(),
-                Moved::Kept(_) => Vec::new(),
-            })
-            .collect();
+        let children = split_children(&moved);
         let had_rows = !self.rows.is_empty();
         // The children are evaluated before anything changes, so a cancelled pass leaves
         // the solve as it was.
         let evaluated = self.evaluate_children(&mesh, &children, had_rows, cancel)?;
         self.refine_passes += 1;
-        self.radiosity = remap(&self.radiosity, &moved, n);
-        self.unshot = remap(&self.unshot, &moved, n);
-        self.gathered = remap(&self.gathered, &moved, n);
-        self.source = remap(&self.source, &moved, n);
-        self.reflectance = remap(&self.reflectance, &moved, n);
-        self.emission = remap(&self.emission, &moved, n);
-        self.external_in = remap(&self.external_in, &moved, n);
+        self.carry_elements(&moved, n);
         let mut old_rows = std::mem::take(&mut self.rows);
         self.mesh = mesh;
         self.pending = None;

@@ -440,18 +440,7 @@ impl App {
                 )
                 .labelled_by(label.id);
             });
-            ui.horizontal(|ui| {
-                let label = ui.label("min element size (m, 0 = auto)");
-                let mut m = h.min_size.unwrap_or(0.0);
-                ui.add(
-                    egui::DragValue::new(&mut m)
-                        .range(0.0..=1e6)
-                        .speed(0.001)
-                        .max_decimals(4),
-                )
-                .labelled_by(label.id);
-                h.min_size = (m > 0.0).then_some(m);
-            });
+            min_size_ui(ui, &mut h.min_size);
             ui.checkbox(&mut h.clustering, "Clustering");
         }
         let mut adaptive = s.adaptive.is_some();
@@ -469,18 +458,7 @@ impl App {
                 )
                 .labelled_by(label.id);
             });
-            ui.horizontal(|ui| {
-                let label = ui.label("min element size (m, 0 = auto)");
-                let mut m = a.min_size.unwrap_or(0.0);
-                ui.add(
-                    egui::DragValue::new(&mut m)
-                        .range(0.0..=1e6)
-                        .speed(0.001)
-                        .max_decimals(4),
-                )
-                .labelled_by(label.id);
-                a.min_size = (m > 0.0).then_some(m);
-            });
+            min_size_ui(ui, &mut a.min_size);
         }
         if s.method != self.solver_settings.method {
             self.auto_method = false;
@@ -552,4 +530,21 @@ impl App {
                 p.line(Line::new("residual", log(2)));
             });
     }
+}
+
+/// The "min element size" field (0 = the automatic size) of the hierarchy and of adaptive
+/// subdivision.
+fn min_size_ui(ui: &mut egui::Ui, min_size: &mut Option<f64>) {
+    ui.horizontal(|ui| {
+        let label = ui.label("min element size (m, 0 = auto)");
+        let mut m = min_size.unwrap_or(0.0);
+        ui.add(
+            egui::DragValue::new(&mut m)
+                .range(0.0..=1e6)
+                .speed(0.001)
+                .max_decimals(4),
+        )
+        .labelled_by(label.id);
+        *min_size = (m > 0.0).then_some(m);
+    });
 }

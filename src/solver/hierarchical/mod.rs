@@ -174,9 +174,8 @@ pub(super) struct Hierarchy {
     /// Largest reflectance channel per patch (edits change it).
     patch_reflectance: Vec<f32>,
     stage: Stage,
-    /// The refinement round under way, and how many have started.
+    /// The refinement round under way.
     round: Option<oracle::Round>,
-    rounds: u32,
     /// The largest oracle threshold so far (see `Solver::held_threshold`).
     threshold: f32,
     sweeps: u64,
@@ -214,7 +213,6 @@ impl Hierarchy {
             patch_reflectance,
             stage: Stage::Refine,
             round: None,
-            rounds: 0,
             threshold: 0.0,
             sweeps: 0,
             started: Instant::now(),
@@ -463,14 +461,20 @@ impl Solver {
         if total > 0.0 { changed / total } else { 0.0 }
     }
 
-    /// Area-weighted mean of the largest reflectance channel.
-    pub(super) fn mean_reflectance(&self) -> f64 {
-        let (mut rho, mut area) = (0.0f64, 0.0f64);
-        for (e, r) in self.mesh.elements.iter().zip(&self.reflectance) {
-            rho += r.max_element() as f64 * e.area as f64;
+    /// Area-weighted mean over the elements of `value(i)`; `None` without area.
+    pub(super) fn area_mean(&self, value: impl Fn(usize) -> f64) -> Option<f64> {
+        let (mut sum, mut area) = (0.0f64, 0.0f64);
+        for (i, e) in self.mesh.elements.iter().enumerate() {
+            sum += value(i) * e.area as f64;
             area += e.area as f64;
         }
-        if area > 0.0 { rho / area } else { 0.0 }
+        (area > 0.0).then(|| sum / area)
+    }
+
+    /// Area-weighted mean of the largest reflectance channel.
+    pub(super) fn mean_reflectance(&self) -> f64 {
+        self.area_mean(|i| self.reflectance[i].max_element() as f64)
+            .unwrap_or(0.0)
     }
 
     /// After an edit: sweep again from the current solution, then let the oracle look.

@@ -26,8 +26,7 @@ use super::transfer::{self, Shape, Transfer};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
 use crate::mesh::Mesh;
-use crate::solver::form_factor::point_to_polygon;
-use crate::solver::refine::remap;
+use crate::solver::refine::split_children;
 use crate::solver::types::Stop;
 use crate::solver::{Method, Solver, external_factor};
 use glam::Vec3;
@@ -191,13 +190,7 @@ impl View<'_> {
                 continue;
             };
             let sn = self.mesh.patches[self.h.node_patch[l.source.0 as usize] as usize].normal;
-            let f = |x: Vec3| {
-                if sn.dot(x - source[0]) > 0.0 {
-                    point_to_polygon(x, normal, &source)
-                } else {
-                    0.0
-                }
-            };
+            let f = |x: Vec3| transfer::front_form_factor(x, normal, &source, sn);
             let unoccluded: f32 = q.iter().map(|x| f(*x)).sum::<f32>() / 3.0;
             if unoccluded <= 0.0 {
                 continue;
@@ -427,16 +420,11 @@ impl Solver {
     /// this keeps the converged error near ε · B̄ whatever the reflectance (a furnace at
     /// ρ = 0.99 refines a hundred times deeper than one at ρ = 0).
     pub(super) fn link_threshold(&self) -> f32 {
-        let (mut b, mut area) = (0.0f64, 0.0f64);
-        for (e, x) in self.mesh.elements.iter().zip(&self.radiosity) {
-            b += x.max_element() * e.area as f64;
-            area += e.area as f64;
-        }
-        if area <= 0.0 {
+        let Some(b) = self.area_mean(|i| self.radiosity[i].max_element()) else {
             return 0.0;
-        }
+        };
         let amplification = (1.0 - self.mean_reflectance()).max(1e-3);
-        (self.settings.hierarchy.link_error as f64 * b / area * amplification) as f32
+        (self.settings.hierarchy.link_error as f64 * b * amplification) as f32
     }
 
     /// [`Solver::link_threshold`], never below the largest it has been in this solve: an
@@ -449,16 +437,11 @@ impl Solver {
 
     /// Σ A E' / Σ A · ρ̄ / (1 − ρ̄) (largest channels): see `Round::ambient`.
     fn ambient_estimate(&self) -> f32 {
-        let (mut e, mut area) = (0.0f64, 0.0f64);
-        for (el, s) in self.mesh.elements.iter().zip(&self.source) {
-            e += s.max_element() as f64 * el.area as f64;
-            area += el.area as f64;
-        }
-        if area <= 0.0 {
+        let Some(e) = self.area_mean(|i| self.source[i].max_element() as f64) else {
             return 0.0;
-        }
+        };
         let rho = self.mean_reflectance().min(0.999);
-        (e / area * rho / (1.0 - rho)) as f32
+        (e * rho / (1.0 - rho)) as f32
     }
 
     /// The smallest element the hierarchy may make.
@@ -494,7 +477,6 @@ impl Solver {
                 // came out 50 % too bright on the Cornell box (its surviving cluster links
                 // overestimate), worse than waiting for the first full round.
                 let threshold = self.held_threshold(h);
-                h.rounds += 1;
                 if threshold.is_nan() || threshold <= 0.0 {
                     h.links.sort_unstable_by_key(|l| (l.receiver, l.source));
                     return Ok(Some(changed));
@@ -647,20 +629,8 @@ impl Solver {
         let moved = mesh.refine(&marked);
         mesh.mark_hard_shadows(&self.bvh, &self.external, self.hierarchy_min_size());
         let n = mesh.elements.len();
-        self.radiosity = remap(&self.radiosity, &moved, n);
-        self.source = remap(&self.source, &moved, n);
-        self.reflectance = remap(&self.reflectance, &moved, n);
-        self.emission = remap(&self.emission, &moved, n);
-        self.external_in = remap(&self.external_in, &moved, n);
-        self.unshot = vec![Default::default(); n];
-        self.gathered = vec![Default::default(); n];
-        let children: Vec<u32> = moved
-            .iter()
-            .flat_map(|m| match m {
-                crate::mesh::Moved::Split(kids) => kids.to_vec(),
-                crate::mesh::Moved::Kept(_) => Vec::new(),
-            })
-            .collect();
+        self.carry_elements(&moved, n);
+        let children = split_children(&moved);
         let (bvh, external) = (&self.bvh, &self.external);
         let lit: Vec<(Vec3, u32)> = children
             .par_iter()

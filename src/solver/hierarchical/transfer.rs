@@ -101,6 +101,16 @@ pub(super) fn cluster_bound(r: &Shape, s: &Shape) -> f32 {
     }
 }
 
+/// The form factor from point `x` with normal `n` to the source triangle `sv` with normal
+/// `sn`, which emits from its front side only: zero when `x` is not in front of it.
+pub(super) fn front_form_factor(x: Vec3, n: Vec3, sv: &[Vec3; 3], sn: Vec3) -> f32 {
+    if sn.dot(x - sv[0]) > 0.0 {
+        point_to_polygon(x, n, sv)
+    } else {
+        0.0
+    }
+}
+
 /// Barycentric points of the degree-2 rule, each halfway from the centroid to a corner.
 fn quadrature(v: &[Vec3; 3]) -> [Vec3; 3] {
     let at = |a: usize, b: usize, c: usize| v[a] * (2.0 / 3.0) + (v[b] + v[c]) * (1.0 / 6.0);
@@ -150,13 +160,7 @@ fn surface_to_surface(
     seed: u64,
 ) -> Transfer {
     let q = quadrature(rv);
-    let f = q.map(|x| {
-        if sn.dot(x - sv[0]) > 0.0 {
-            point_to_polygon(x, rn, sv)
-        } else {
-            0.0
-        }
-    });
+    let f = q.map(|x| front_form_factor(x, rn, sv, sn));
     let hi = f[0].max(f[1]).max(f[2]);
     if hi <= 0.0 {
         return Transfer {
@@ -207,11 +211,7 @@ fn surface_to_surface(
     // the linear spread for bends the centroid cannot see, plus the mean where a shadow
     // boundary crosses the link.
     let c = (rv[0] + rv[1] + rv[2]) / 3.0;
-    let fc = if sn.dot(c - sv[0]) > 0.0 {
-        point_to_polygon(c, rn, sv)
-    } else {
-        0.0
-    };
+    let fc = front_form_factor(c, rn, sv, sn);
     let mean_visible = (visible[0] + visible[1] + visible[2]) / 3.0;
     let partial = vhi > vlo;
     Transfer {
