@@ -36,7 +36,8 @@ enum Reference {
 
 /// One row of convergence.csv.
 struct Row {
-    method: Method,
+    /// The method, with "+gather" for its final gather at the points.
+    label: String,
     seconds: f64,
     iterations: u64,
     rays: u64,
@@ -292,19 +293,13 @@ pub fn convergence(
     let reference = compute_reference(scene, &prepared, reference, out, quiet)?;
     let reference_seconds = t.elapsed().as_secs_f64();
     let areas: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
-    // Overall (rms, max) and per class, for a solution on `mesh`.
-    let errors = |mesh: &crate::mesh::Mesh, values: &[Vec3]| match &reference {
-        Reference::Elements(r, _) => (element_errors(values, r, &areas), Vec::new()),
+    // Overall (rms, max) and per class, of values at the reference points.
+    let point_stats = |at_points: &[Vec3]| match &reference {
+        Reference::Elements(..) => ((0.0, 0.0), Vec::new()),
         Reference::Points {
-            points,
-            values: r,
-            classes,
-            ..
+            values: r, classes, ..
         } => {
-            let e = point_errors(
-                &probe_values(mesh, values, points, Reconstruction::Gouraud),
-                r,
-            );
+            let e = point_errors(at_points, r);
             let per_class = classes.as_ref().map_or(Vec::new(), |c| {
                 Class::ALL
                     .iter()
@@ -317,6 +312,14 @@ pub fn convergence(
                     .collect()
             });
             (rms_max(e.iter().copied()), per_class)
+        }
+    };
+    // The same, for a solution on `mesh` (its Gouraud reconstruction at the points, or its
+    // elements against the elements).
+    let errors = |mesh: &crate::mesh::Mesh, values: &[Vec3]| match &reference {
+        Reference::Elements(r, _) => (element_errors(values, r, &areas), Vec::new()),
+        Reference::Points { points, .. } => {
+            point_stats(&probe_values(mesh, values, points, Reconstruction::Gouraud))
         }
     };
     let truth = matches!(reference, Reference::Points { .. });
@@ -357,7 +360,7 @@ pub fn convergence(
             let s = solver.stats();
             let ((rms, max), classes) = errors(solver.mesh(), &solver.radiosity());
             rows.push(Row {
-                method,
+                label: method.name().to_string(),
                 seconds: s.seconds,
                 iterations: s.iterations,
                 rays: s.rays,
@@ -394,6 +397,34 @@ pub fn convergence(
         }
         summary += &line;
         summary.push('\n');
+        if let Reference::Points { points, .. } = &reference {
+            // The final gather at the points from the converged (or last) solution: one row,
+            // at the solve's time plus the gather's.
+            let t = Instant::now();
+            let values = solver.gatherer(options.gather_settings()).at_points(points);
+            let gather_seconds = t.elapsed().as_secs_f64();
+            let ((rms, max), classes) = point_stats(&values);
+            let s = solver.stats();
+            println!(
+                "{:<17} final gather at {} points: {gather_seconds:.3} s, RMS {rms:.2e}, max {max:.2e}",
+                format!("{}+gather", method.name()),
+                points.len()
+            );
+            for (class, rms, max) in &classes {
+                println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
+            }
+            rows.push(Row {
+                label: format!("{}+gather", method.name()),
+                seconds: s.seconds + gather_seconds,
+                iterations: s.iterations,
+                rays: s.rays,
+                unshot: s.unshot_fraction,
+                residual: s.residual,
+                rms,
+                max,
+                classes,
+            });
+        }
     }
     let (label, metric) = match &reference {
         Reference::Elements(_, what) => (
@@ -420,7 +451,7 @@ pub fn convergence(
         let _ = write!(
             csv,
             "{},{},{},{},{},{},{:e},{:e}",
-            r.method,
+            r.label,
             r.seconds,
             r.iterations,
             r.rays,
@@ -530,10 +561,16 @@ fn plot(rows: &[Row], title: &str, y_label: &str) -> Result<Vec<u8>> {
         }
         mesh.draw().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
         let colours = [RED, BLUE, GREEN, MAGENTA, CYAN, BLACK];
-        for (k, method) in Method::ALL.iter().enumerate() {
+        let mut labels: Vec<&str> = Vec::new();
+        for r in rows {
+            if !labels.contains(&r.label.as_str()) {
+                labels.push(&r.label);
+            }
+        }
+        for (k, label) in labels.iter().enumerate() {
             let pts: Vec<(f64, f64)> = rows
                 .iter()
-                .filter(|r| r.method == *method && r.rms > 0.0 && r.seconds > 0.0)
+                .filter(|r| r.label == *label && r.rms > 0.0 && r.seconds > 0.0)
                 .map(|r| (r.seconds, r.rms))
                 .collect();
             if pts.is_empty() {
@@ -544,7 +581,7 @@ fn plot(rows: &[Row], title: &str, y_label: &str) -> Result<Vec<u8>> {
                 .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
                 .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
             if text {
-                series.label(method.name()).legend(move |(x, y)| {
+                series.label(*label).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
                 });
             }

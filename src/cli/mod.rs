@@ -19,6 +19,7 @@ pub use bench::register_font;
 pub use options::RenderOptions;
 pub use options::SolveOptions;
 
+#[cfg(all(test, feature = "viewer"))]
 use crate::mesh::Reconstruction;
 use crate::pipeline::Prepared;
 use crate::scene::Scene;
@@ -114,9 +115,10 @@ pub enum Command {
         /// Output CSV (x,y,z,r,g,b); standard output when absent.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// flat, gouraud (the viewer's default) or hermite.
-        #[arg(long, default_value = "gouraud")]
-        reconstruction: Reconstruction,
+        /// gather (the final gather at each point: point-by-point values), or the mesh
+        /// solution as the viewer shows it: flat, gouraud (the viewer's default) or hermite.
+        #[arg(long, default_value = "gather")]
+        reconstruction: options::ProbeValue,
         #[command(flatten)]
         options: SolveOptions,
     },

@@ -5,6 +5,7 @@
 use crate::mesh::Reconstruction;
 use crate::mesh::{AdaptiveSettings, MeshSettings};
 use crate::solver::form_factor::FormFactorSettings;
+use crate::solver::gather::GatherSettings;
 use crate::solver::{HierarchySettings, Method, SolverSettings};
 use clap::Args;
 use glam::{DVec3, Vec3};
@@ -21,6 +22,26 @@ pub struct LightOptions {
     pub sun: Option<(DVec3, Vec3)>,
 }
 
+/// What `probe` reports at a point: the final gather there, or a reconstruction of the
+/// mesh solution (what the viewer shows).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProbeValue {
+    Gather,
+    Mesh(crate::mesh::Reconstruction),
+}
+
+impl std::str::FromStr for ProbeValue {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "gather" => Ok(ProbeValue::Gather),
+            _ => s.parse().map(ProbeValue::Mesh).map_err(|_| {
+                format!("unknown reconstruction '{s}' (expected gather, flat, gouraud or hermite)")
+            }),
+        }
+    }
+}
+
 /// Options shared by every command that solves.
 #[derive(Args, Debug, Clone)]
 pub struct SolveOptions {
@@ -34,6 +55,10 @@ pub struct SolveOptions {
     /// Stop after this many seconds even if not converged (bench: per method, default 60).
     #[arg(long)]
     pub time_limit: Option<f64>,
+    /// The final gather's error per node of its sum, relative to the light the point
+    /// receives (smaller: more nodes and shadow rays per point).
+    #[arg(long, default_value_t = GatherSettings::default().error)]
+    pub gather_error: f32,
     /// Element size in metres (default: chosen for about 3000 elements).
     #[arg(long)]
     pub element_size: Option<f64>,
@@ -120,6 +145,14 @@ impl Default for SolveOptions {
 }
 
 impl SolveOptions {
+    /// The final gather these options ask for.
+    pub fn gather_settings(&self) -> GatherSettings {
+        GatherSettings {
+            error: self.gather_error,
+            ..Default::default()
+        }
+    }
+
     /// The meshing these options ask for.
     pub fn mesh_settings(&self) -> MeshSettings {
         MeshSettings {

@@ -28,6 +28,7 @@
 pub mod direct;
 mod edits;
 pub mod form_factor;
+pub mod gather;
 mod gathering;
 pub mod hemicube;
 mod hierarchical;
@@ -215,6 +216,21 @@ impl Solver {
     /// Source term E'_i per element (emission plus first bounce of external light).
     pub fn source(&self) -> &[Vec3] {
         &self.source
+    }
+
+    /// The current solution prepared for the final gather at points (see [`gather`]).
+    pub fn gatherer(&self, settings: gather::GatherSettings) -> gather::Gatherer {
+        gather::Gatherer::new(
+            self.mesh.clone(),
+            self.bvh.clone(),
+            self.external.clone(),
+            gather::Solution {
+                radiosity: self.radiosity(),
+                reflectance: self.reflectance.clone(),
+                emission: self.emission.clone(),
+            },
+            settings,
+        )
     }
 
     /// Progress so far.

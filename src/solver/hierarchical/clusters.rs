@@ -18,12 +18,12 @@ use std::ops::Range;
 pub(super) const LEAF_PATCHES: usize = 4;
 
 /// How many patches a cluster's transfers sample for visibility.
-pub(super) const SAMPLES: usize = 4;
+pub(in crate::solver) const SAMPLES: usize = 4;
 
 /// One cluster: a bounding box of surfaces, seen from outside through its projected area
 /// (see `transfer`).
 #[derive(Clone, Debug)]
-pub(super) struct Cluster {
+pub(in crate::solver) struct Cluster {
     pub centre: Vec3,
     /// Radius of the bounding sphere around `centre` (half the box diagonal).
     pub radius: f32,
@@ -44,7 +44,7 @@ pub(super) struct Cluster {
 
 /// The cluster tree.
 #[derive(Clone, Debug, Default)]
-pub(super) struct Clusters {
+pub(in crate::solver) struct Clusters {
     pub nodes: Vec<Cluster>,
     /// Child lists of the clusters: other clusters or patch roots.
     pub children: Vec<NodeId>,

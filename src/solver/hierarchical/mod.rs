@@ -23,11 +23,11 @@
 //! Results do not depend on the thread count: each link's rays are seeded by its ends'
 //! ids, links are sorted by (receiver, source), and every sum runs in that order.
 
-mod clusters;
+pub(super) mod clusters;
 mod oracle;
 #[cfg(test)]
 mod tests;
-mod transfer;
+pub(super) mod transfer;
 
 use super::types::Stop;
 use super::{Solver, sum3d};
@@ -42,7 +42,7 @@ use std::time::Instant;
 /// A node of the hierarchy: a quadtree node of `Mesh::nodes` or, with the top bit set, a
 /// cluster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub(super) struct NodeId(pub u32);
+pub(in crate::solver) struct NodeId(pub u32);
 
 const CLUSTER_BIT: u32 = 1 << 31;
 const NONE: u32 = u32::MAX;

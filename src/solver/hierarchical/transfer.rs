@@ -103,7 +103,7 @@ pub(super) fn cluster_bound(r: &Shape, s: &Shape) -> f32 {
 
 /// The form factor from point `x` with normal `n` to the source triangle `sv` with normal
 /// `sn`, which emits from its front side only: zero when `x` is not in front of it.
-pub(super) fn front_form_factor(x: Vec3, n: Vec3, sv: &[Vec3; 3], sn: Vec3) -> f32 {
+pub(in crate::solver) fn front_form_factor(x: Vec3, n: Vec3, sv: &[Vec3; 3], sn: Vec3) -> f32 {
     if sn.dot(x - sv[0]) > 0.0 {
         point_to_polygon(x, n, sv)
     } else {
@@ -228,7 +228,7 @@ fn surface_to_surface(
 /// area that is oriented (the area vector a = Σ A_i n_i) plus a quarter of the rest
 /// (isotropic). Exact for coplanar surfaces facing one way (|a| = A), Sillion's isotropic
 /// A / 4 for a closed surface (a = 0).
-fn projected_area(area: f32, area_vector: Vec3, w: Vec3) -> f32 {
+pub(in crate::solver) fn projected_area(area: f32, area_vector: Vec3, w: Vec3) -> f32 {
     area_vector.dot(w).max(0.0) + (area - area_vector.length()).max(0.0) * 0.25
 }
 

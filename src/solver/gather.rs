@@ -1,0 +1,572 @@
+//! The final gather: the radiosity at one surface point, computed at the point from the
+//! solution (the second pass of two-pass methods; Lischinski, Tampieri & Greenberg,
+//! "Combining hierarchical radiosity and discontinuity meshing", SIGGRAPH 1993, §5; Smits,
+//! Arvo & Salesin 1994).
+//!
+//! A mesh solution is an average over each element; where light changes within a few
+//! millimetres (a corner, the foot of a block, a penumbra) no practical mesh follows it. At
+//! a point x with normal n on an element of reflectance ρ and emission E,
+//!
+//!   B(x) = E + ρ · (H_ext(x) + Σ_s F(x → s) · V(x, s) · B_s)
+//!
+//! - H_ext: punctual lights, sun and sky at x itself (`light::direct::irradiance`).
+//! - The sum runs over the scene's surfaces as a hierarchy seen from x: the cluster tree
+//!   above the patches (`hierarchical::clusters`), the patches' element quadtrees, and
+//!   below each leaf element a few levels of virtual midpoint subdivision. A node is taken
+//!   whole when the error of doing so is below δ (see below); otherwise its children are.
+//!   - A surface node contributes Lambert's exact point-to-polygon form factor F (zero behind
+//!     its front) times its mean radiosity; its error bound is F · ΔB, ΔB the spread of the
+//!     solution over it. Below a leaf, the solution is the linear function through the
+//!     leaf's corners that keeps its mean: B_e + (g_k − ḡ), g_k the Gouraud vertex values
+//!     (a least-squares fit to the neighbouring elements), so a corner sees the adjacent
+//!     wall's value near the corner, not that wall element's average.
+//!   - Visibility: a node whose shaft from x is clear of every other triangle (Haines &
+//!     Wallace's shaft cull) is fully visible; otherwise stratified shadow rays (4, or 16 for
+//!     nodes carrying more than 16 δ) estimate it, and where they disagree (a shadow boundary
+//!     crosses the node) the node is split while it carries more than δ; at the last level a
+//!     disagreeing node takes 16 strata.
+//!   - A cluster contributes its mean radiosity through its projected area (as the
+//!     hierarchical solver's cluster links do) times the visibility of its sample patches,
+//!     when its bound A · B_max / (π gap²) is below δ; otherwise its children are visited.
+//! - δ = `error` · max(H_e, 2 % of the scene's mean H), H_e = (B_e − E_e)/ρ_e the solution's
+//!   irradiance at x's element: each node is allowed an error that is small against the
+//!   light x receives, in umbrae as well as in the open.
+//!
+//! Each point is deterministic (its rays are seeded by its position), and points are
+//! independent, so a set of points is gathered in parallel with results that do not depend
+//! on the thread count.
+
+use super::hierarchical::clusters::Clusters;
+use super::hierarchical::transfer::{front_form_factor, projected_area};
+use crate::accel::Bvh;
+use crate::geometry::sampling::{hash, stratified_point};
+use crate::light::ExternalLight;
+use crate::light::direct::irradiance;
+use crate::mesh::Mesh;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::f32::consts::PI;
+use std::sync::Arc;
+
+/// How closely the gather follows the light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GatherSettings {
+    /// Error allowed per node of the sum, relative to the light the point receives.
+    pub error: f32,
+    /// Levels of virtual subdivision below a leaf element.
+    pub virtual_levels: u8,
+}
+
+impl Default for GatherSettings {
+    fn default() -> Self {
+        GatherSettings {
+            error: 0.002,
+            virtual_levels: 4,
+        }
+    }
+}
+
+/// Mean and spread of the solution over a node.
+#[derive(Clone, Copy, Debug, Default)]
+struct Value {
+    mean: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl Value {
+    fn spread(&self) -> f32 {
+        (self.hi - self.lo).max(Vec3::ZERO).element_sum()
+    }
+}
+
+/// A node of the hierarchy as seen from a gathering point.
+#[derive(Clone, Copy, Debug)]
+enum Node {
+    Cluster(u32),
+    Quad(u32),
+    /// Part of leaf element `element`: its corners in the element's barycentric
+    /// coordinates, and how many levels below the leaf it is.
+    Virtual {
+        element: u32,
+        bary: [Vec3; 3],
+        level: u8,
+    },
+}
+
+/// What the sum does with a surface node.
+enum Visit {
+    Skip,
+    Open,
+    /// Taken whole: its form factor times visibility.
+    Add(f32),
+}
+
+/// A solution prepared for gathering at points.
+pub struct Gatherer {
+    mesh: Arc<Mesh>,
+    bvh: Arc<Bvh>,
+    external: ExternalLight,
+    radiosity: Vec<Vec3>,
+    reflectance: Vec<Vec3>,
+    emission: Vec<Vec3>,
+    settings: GatherSettings,
+    clusters: Clusters,
+    /// Per cluster: mean radiosity and largest channel sum below it.
+    cluster_values: Vec<(Vec3, f32)>,
+    /// Per quadtree node: the solution over it, and its patch.
+    node_values: Vec<Value>,
+    node_patch: Vec<u32>,
+    /// Per element: the solution at its corners (mean-preserving linear function).
+    corners: Vec<[Vec3; 3]>,
+    /// The floor of the irradiance scale: 2 % of the scene's area-mean H (channel sum).
+    floor: f32,
+}
+
+/// A solution: radiosity, reflectance and emission per element.
+pub struct Solution {
+    pub radiosity: Vec<Vec3>,
+    pub reflectance: Vec<Vec3>,
+    pub emission: Vec<Vec3>,
+}
+
+impl Gatherer {
+    /// Prepares `solution` (per element of `mesh`) for gathering with visibility from
+    /// `bvh` and the `external` lights.
+    pub fn new(
+        mesh: Arc<Mesh>,
+        bvh: Arc<Bvh>,
+        external: ExternalLight,
+        solution: Solution,
+        settings: GatherSettings,
+    ) -> Gatherer {
+        let Solution {
+            radiosity,
+            reflectance,
+            emission,
+        } = solution;
+        let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
+        let corners: Vec<[Vec3; 3]> = mesh
+            .elements
+            .iter()
+            .zip(&radiosity)
+            .map(|(e, b)| {
+                let g = e.corners.map(|c| vertex[c as usize]);
+                let mean = (g[0] + g[1] + g[2]) / 3.0;
+                g.map(|g| (*b + g - mean).max(Vec3::ZERO))
+            })
+            .collect();
+        let mut node_values = vec![Value::default(); mesh.nodes.len()];
+        let mut area_sums = vec![0.0f32; mesh.nodes.len()];
+        let mut node_patch = vec![0u32; mesh.nodes.len()];
+        for (i, p) in mesh.patches.iter().enumerate() {
+            let mut tree = Tree {
+                mesh: &mesh,
+                radiosity: &radiosity,
+                corners: &corners,
+                patch: i as u32,
+                values: &mut node_values,
+                area: &mut area_sums,
+                node_patch: &mut node_patch,
+            };
+            tree.fill(p.root);
+        }
+        let open: Vec<u32> = (0..mesh.patches.len() as u32)
+            .filter(|&p| !mesh.patches[p as usize].covered)
+            .collect();
+        let clusters = Clusters::build(&mesh, &open);
+        let mut cluster_values = vec![(Vec3::ZERO, 0.0f32); clusters.nodes.len()];
+        // Preorder: children come after their parent, so leaves first from the back.
+        for c in (0..clusters.nodes.len()).rev() {
+            let (mut sum, mut area, mut hi) = (Vec3::ZERO, 0.0f32, 0.0f32);
+            for k in clusters.children_of(c) {
+                let (mean, a, h) = match k.cluster() {
+                    Some(j) => (
+                        cluster_values[j].0,
+                        clusters.nodes[j].area,
+                        cluster_values[j].1,
+                    ),
+                    None => {
+                        let v = &node_values[k.0 as usize];
+                        (v.mean, area_sums[k.0 as usize], v.hi.element_sum())
+                    }
+                };
+                sum += mean * a;
+                area += a;
+                hi = hi.max(h);
+            }
+            cluster_values[c] = (if area > 0.0 { sum / area } else { Vec3::ZERO }, hi);
+        }
+        let (mut h_sum, mut a_sum) = (0.0f64, 0.0f64);
+        for (i, e) in mesh.elements.iter().enumerate() {
+            if mesh.patches[e.patch as usize].covered {
+                continue;
+            }
+            h_sum +=
+                e.area as f64 * irradiance_of(radiosity[i], reflectance[i], emission[i]) as f64;
+            a_sum += e.area as f64;
+        }
+        let floor = if a_sum > 0.0 {
+            (0.02 * h_sum / a_sum) as f32
+        } else {
+            0.0
+        };
+        Gatherer {
+            mesh,
+            bvh,
+            external,
+            radiosity,
+            reflectance,
+            emission,
+            settings,
+            clusters,
+            cluster_values,
+            node_values,
+            node_patch,
+            corners,
+            floor,
+        }
+    }
+
+    /// B at each world-space point with the normal of the side asked about (as `probe`
+    /// reads them); zero where no element faces that way.
+    pub fn at_points(&self, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {
+        points
+            .par_iter()
+            .map(
+                |(p, n)| match self.mesh.locate(self.mesh.to_local(*p), n.as_vec3()) {
+                    Some((e, bary)) => {
+                        let v = &self.mesh.elements[e as usize].verts;
+                        self.at(e, v[0] * bary[0] + v[1] * bary[1] + v[2] * bary[2])
+                    }
+                    None => Vec3::ZERO,
+                },
+            )
+            .collect()
+    }
+
+    /// B at point `x` (mesh frame) of element `e`.
+    pub fn at(&self, e: u32, x: Vec3) -> Vec3 {
+        self.at_depth(e, x, 0)
+    }
+
+    /// [`Gatherer::at`]; `depth` 0 gathers the nearest sources' radiosity at them in turn
+    /// (see [`Gatherer::source_value`]), depth 1 takes the solution's.
+    fn at_depth(&self, e: u32, x: Vec3, depth: u8) -> Vec3 {
+        let mesh = &self.mesh;
+        let i = e as usize;
+        let element = &mesh.elements[i];
+        let n = element.normal;
+        let own = mesh.patches[element.patch as usize].scene_triangle;
+        let seed = hash(
+            x.x.to_bits() as u64 ^ (x.y.to_bits() as u64) << 21 ^ (x.z.to_bits() as u64) << 42,
+        );
+        let (external, _) = irradiance(&mesh.frame(), &self.bvh, &self.external, x, n, own, seed);
+        let scale = irradiance_of(self.radiosity[i], self.reflectance[i], self.emission[i]);
+        let delta = self.settings.error * scale.max(self.floor);
+        let gathered = self.gathered((x, n, own, delta, seed), depth);
+        self.emission[i] + self.reflectance[i] * (external + gathered)
+    }
+
+    /// The radiosity a leaf or virtual node of element `e` with centroid `c` and bounding
+    /// radius `r` sends to x through `factor`: the solution's `mean`, or, at depth 0 for a
+    /// node close to x that carries a noticeable share of its light, the gather at the
+    /// node's centroid itself. This is the near field of a corner or a contact: there the
+    /// adjacent wall's light changes over millimetres and x sees that wall at a large
+    /// solid angle, so the element's linear function is not enough.
+    #[allow(clippy::too_many_arguments)]
+    fn source_value(
+        &self,
+        x: Vec3,
+        depth: u8,
+        e: u32,
+        c: Vec3,
+        r: f32,
+        mean: Vec3,
+        factor: f32,
+    ) -> Vec3 {
+        if depth == 0 && factor > NEAR_FACTOR && (c - x).length() < NEAR_RADII * r {
+            self.at_depth(e, c, 1)
+        } else {
+            mean
+        }
+    }
+
+    /// Σ_s F(x → s) V(x, s) B_s over the hierarchy, each node to within `delta`.
+    fn gathered(&self, (x, n, own, delta, seed): (Vec3, Vec3, u32, f32, u64), depth: u8) -> Vec3 {
+        let mesh = &self.mesh;
+        let eps = mesh.epsilon();
+        let from = x + n * eps;
+        let mut stack: Vec<Node> = Vec::with_capacity(64);
+        if self.clusters.nodes.is_empty() {
+            return Vec3::ZERO;
+        }
+        stack.push(Node::Cluster(0));
+        let mut h = Vec3::ZERO;
+        while let Some(node) = stack.pop() {
+            match node {
+                Node::Cluster(c) => {
+                    let cluster = &self.clusters.nodes[c as usize];
+                    let d = cluster.centre - x;
+                    if n.dot(d) < -cluster.radius {
+                        continue;
+                    }
+                    let dist = d.length();
+                    let gap = dist - cluster.radius;
+                    let (mean, hi) = self.cluster_values[c as usize];
+                    if gap > 0.0 && cluster.area * hi / (PI * gap * gap) <= delta {
+                        h += mean * self.cluster_factor(c as usize, x, n, from, own, seed);
+                    } else {
+                        for k in self.clusters.children_of(c as usize) {
+                            stack.push(match k.cluster() {
+                                Some(j) => Node::Cluster(j as u32),
+                                None => Node::Quad(k.0),
+                            });
+                        }
+                    }
+                }
+                Node::Quad(q) => {
+                    let quad = &mesh.nodes[q as usize];
+                    let patch = &mesh.patches[self.node_patch[q as usize] as usize];
+                    let value = self.node_values[q as usize];
+                    let can_open = quad.children.is_some() || self.settings.virtual_levels > 0;
+                    let visit = self.visit(
+                        (x, n, from, own, delta, seed ^ q as u64),
+                        (&quad.verts, patch.normal, patch.scene_triangle),
+                        value,
+                        can_open,
+                    );
+                    match visit {
+                        Visit::Skip => {}
+                        Visit::Add(f) => {
+                            h += f * match quad.element {
+                                Some(e) => {
+                                    let c = (quad.verts[0] + quad.verts[1] + quad.verts[2]) / 3.0;
+                                    let r = radius(&quad.verts, c);
+                                    self.source_value(x, depth, e, c, r, value.mean, f)
+                                }
+                                None => value.mean,
+                            }
+                        }
+                        Visit::Open => match (quad.children, quad.element) {
+                            (Some(children), _) => {
+                                stack.extend(children.map(Node::Quad));
+                            }
+                            (None, Some(element)) => {
+                                let b = [Vec3::X, Vec3::Y, Vec3::Z];
+                                stack.extend(virtual_children(b).map(|bary| Node::Virtual {
+                                    element,
+                                    bary,
+                                    level: 1,
+                                }));
+                            }
+                            (None, None) => {}
+                        },
+                    }
+                }
+                Node::Virtual {
+                    element,
+                    bary,
+                    level,
+                } => {
+                    let el = &mesh.elements[element as usize];
+                    let patch = &mesh.patches[el.patch as usize];
+                    let at = |b: Vec3| el.verts[0] * b.x + el.verts[1] * b.y + el.verts[2] * b.z;
+                    let verts = bary.map(at);
+                    let c = &self.corners[element as usize];
+                    let value_at = |b: Vec3| c[0] * b.x + c[1] * b.y + c[2] * b.z;
+                    let corner_values = bary.map(value_at);
+                    let value = Value {
+                        mean: (corner_values[0] + corner_values[1] + corner_values[2]) / 3.0,
+                        lo: corner_values[0].min(corner_values[1]).min(corner_values[2]),
+                        hi: corner_values[0].max(corner_values[1]).max(corner_values[2]),
+                    };
+                    let node_seed = hash(seed ^ (element as u64) << 8 ^ bary[0].x.to_bits() as u64);
+                    match self.visit(
+                        (x, n, from, own, delta, node_seed),
+                        (&verts, patch.normal, patch.scene_triangle),
+                        value,
+                        level < self.settings.virtual_levels,
+                    ) {
+                        Visit::Skip => {}
+                        Visit::Add(f) => {
+                            let c = (verts[0] + verts[1] + verts[2]) / 3.0;
+                            let r = radius(&verts, c);
+                            h += f * self.source_value(x, depth, element, c, r, value.mean, f);
+                        }
+                        Visit::Open => {
+                            stack.extend(virtual_children(bary).map(|bary| Node::Virtual {
+                                element,
+                                bary,
+                                level: level + 1,
+                            }));
+                        }
+                    }
+                }
+            }
+        }
+        h
+    }
+
+    /// What a surface node with `verts`, `normal` and scene triangle `triangle` adds at x.
+    #[allow(clippy::type_complexity)]
+    fn visit(
+        &self,
+        (x, n, from, own, delta, seed): (Vec3, Vec3, Vec3, u32, f32, u64),
+        (verts, normal, triangle): (&[Vec3; 3], Vec3, u32),
+        value: Value,
+        can_open: bool,
+    ) -> Visit {
+        let f = front_form_factor(x, n, verts, normal);
+        if f <= 0.0 || !f.is_finite() {
+            return Visit::Skip;
+        }
+        if can_open && f * value.spread() > delta {
+            return Visit::Open;
+        }
+        let carried = f * value.mean.element_sum();
+        if carried <= 0.0 {
+            return Visit::Skip;
+        }
+        let eps = self.mesh.epsilon();
+        let base = verts.map(|v| v + normal * eps);
+        let skip = [own, triangle];
+        if self.bvh.shaft_clear(from, &base, skip, eps * 0.1) {
+            return Visit::Add(f);
+        }
+        let strata = |k: u32, seed: u64| {
+            let (mut sum, mut lo, mut hi) = (0.0f32, f32::INFINITY, f32::NEG_INFINITY);
+            for i in 0..k * k {
+                let y = stratified_point(verts, k, i, seed) + normal * eps;
+                let t = self.bvh.transmittance(from, y, skip);
+                sum += t;
+                lo = lo.min(t);
+                hi = hi.max(t);
+            }
+            (sum / (k * k) as f32, hi > lo)
+        };
+        let k = if carried > 16.0 * delta { 4 } else { 2 };
+        let (mut visible, partial) = strata(k, seed);
+        if partial && carried > delta {
+            if can_open {
+                return Visit::Open;
+            }
+            if k < 4 {
+                visible = strata(4, hash(seed)).0;
+            }
+        }
+        Visit::Add(f * visible)
+    }
+
+    /// The factor through which cluster `c` sends its mean radiosity to x: its projected
+    /// area towards x over π d², times n · ω and the visibility of its sample patches.
+    fn cluster_factor(&self, c: usize, x: Vec3, n: Vec3, from: Vec3, own: u32, seed: u64) -> f32 {
+        let cluster = &self.clusters.nodes[c];
+        let d = cluster.centre - x;
+        let dist2 = d.length_squared();
+        if dist2 <= 0.0 {
+            return 0.0;
+        }
+        let w = d / dist2.sqrt();
+        let unoccluded = n.dot(w).max(0.0) * projected_area(cluster.area, cluster.area_vector, -w)
+            / (PI * dist2);
+        if unoccluded <= 0.0 {
+            return 0.0;
+        }
+        let eps = self.mesh.epsilon();
+        let through: f32 = cluster
+            .samples
+            .iter()
+            .enumerate()
+            .map(|(k, &p)| {
+                let patch = &self.mesh.patches[p as usize];
+                let y = stratified_point(&patch.verts, 1, 0, hash(seed ^ k as u64))
+                    + patch.normal * eps;
+                self.bvh.transmittance(from, y, [own, patch.scene_triangle])
+            })
+            .sum();
+        unoccluded * through / cluster.samples.len() as f32
+    }
+}
+
+/// A source node whose form factor from x exceeds this, and whose centroid lies within
+/// [`NEAR_RADII`] of its bounding radii from x, has its radiosity gathered at its centroid.
+const NEAR_FACTOR: f32 = 0.01;
+const NEAR_RADII: f32 = 2.0;
+
+/// Largest distance from `c` to a corner of `v`.
+fn radius(v: &[Vec3; 3], c: Vec3) -> f32 {
+    v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max)
+}
+
+/// The irradiance H = (B − E)/ρ the solution gives an element (channel sum), with ρ
+/// floored so that black surfaces do not divide by zero.
+fn irradiance_of(b: Vec3, rho: Vec3, e: Vec3) -> f32 {
+    ((b - e).max(Vec3::ZERO) / rho.max(Vec3::splat(0.05))).element_sum()
+}
+
+/// The quadtree of one patch being filled with the solution's mean and spread per node.
+struct Tree<'t> {
+    mesh: &'t Mesh,
+    radiosity: &'t [Vec3],
+    corners: &'t [[Vec3; 3]],
+    patch: u32,
+    values: &'t mut [Value],
+    area: &'t mut [f32],
+    node_patch: &'t mut [u32],
+}
+
+impl Tree<'_> {
+    /// Fills node `q` and everything below it from the leaves' values.
+    fn fill(&mut self, q: u32) {
+        let node = &self.mesh.nodes[q as usize];
+        let (children, element) = (node.children, node.element);
+        self.node_patch[q as usize] = self.patch;
+        let value = match (children, element) {
+            (Some(children), _) => {
+                let mut v = Value {
+                    mean: Vec3::ZERO,
+                    lo: Vec3::splat(f32::INFINITY),
+                    hi: Vec3::ZERO,
+                };
+                let mut a = 0.0;
+                for c in children {
+                    self.fill(c);
+                    let (cv, ca) = (self.values[c as usize], self.area[c as usize]);
+                    v.mean += cv.mean * ca;
+                    a += ca;
+                    v.lo = v.lo.min(cv.lo);
+                    v.hi = v.hi.max(cv.hi);
+                }
+                v.mean /= a.max(f32::MIN_POSITIVE);
+                self.area[q as usize] = a;
+                v
+            }
+            (None, Some(e)) => {
+                let (c, b) = (&self.corners[e as usize], self.radiosity[e as usize]);
+                self.area[q as usize] = self.mesh.elements[e as usize].area;
+                Value {
+                    mean: b,
+                    lo: c[0].min(c[1]).min(c[2]).min(b),
+                    hi: c[0].max(c[1]).max(c[2]).max(b),
+                }
+            }
+            (None, None) => Value::default(),
+        };
+        self.values[q as usize] = value;
+    }
+}
+
+/// The four midpoint children of a triangle given by barycentric corners (the order of
+/// `geometry::subdivide`).
+fn virtual_children(b: [Vec3; 3]) -> [[Vec3; 3]; 4] {
+    let m01 = (b[0] + b[1]) * 0.5;
+    let m12 = (b[1] + b[2]) * 0.5;
+    let m20 = (b[2] + b[0]) * 0.5;
+    [
+        [b[0], m01, m20],
+        [m01, b[1], m12],
+        [m20, m12, b[2]],
+        [m01, m12, m20],
+    ]
+}
