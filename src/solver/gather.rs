@@ -60,8 +60,8 @@ pub struct GatherSettings {
 impl Default for GatherSettings {
     fn default() -> Self {
         GatherSettings {
-            error: 0.002,
-            virtual_levels: 4,
+            error: 0.0005,
+            virtual_levels: 7,
         }
     }
 }
@@ -233,15 +233,21 @@ impl Gatherer {
     pub fn at_points(&self, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {
         points
             .par_iter()
-            .map(
-                |(p, n)| match self.mesh.locate(self.mesh.to_local(*p), n.as_vec3()) {
-                    Some((e, bary)) => {
-                        let v = &self.mesh.elements[e as usize].verts;
-                        self.at(e, v[0] * bary[0] + v[1] * bary[1] + v[2] * bary[2])
+            .map(|(p, n)| {
+                let p = self.mesh.to_local(*p);
+                match self.mesh.locate(p, n.as_vec3()) {
+                    // The point itself, projected onto the element's plane (not clamped to
+                    // the element: the nearest element may stop short of a point a few
+                    // microns from an edge, and a point on the edge would see the face
+                    // beyond it edge-on).
+                    Some((e, _)) => {
+                        let element = &self.mesh.elements[e as usize];
+                        let n = element.normal;
+                        self.at(e, p - n * n.dot(p - element.verts[0]))
                     }
                     None => Vec3::ZERO,
-                },
-            )
+                }
+            })
             .collect()
     }
 
@@ -285,8 +291,8 @@ impl Gatherer {
         mean: Vec3,
         factor: f32,
     ) -> Vec3 {
-        if depth == 0 && factor > NEAR_FACTOR && (c - x).length() < NEAR_RADII * r {
-            self.at_depth(e, c, 1)
+        if depth < NEAR_DEPTH && factor > NEAR_FACTOR && (c - x).length() < NEAR_RADII * r {
+            self.at_depth(e, c, depth + 1)
         } else {
             mean
         }
@@ -445,6 +451,12 @@ impl Gatherer {
             }
             (sum / (k * k) as f32, hi > lo)
         };
+        // Shadow rays agreeing prove nothing about a node much brighter than δ (16 rays
+        // all blocked while a sliver of it shows past an occluder's edge): such a node is
+        // split until it is dim enough for its rays to be trusted.
+        if can_open && carried > BLIND_NODE * delta {
+            return Visit::Open;
+        }
         let k = if carried > 16.0 * delta { 4 } else { 2 };
         let (mut visible, partial) = strata(k, seed);
         if partial && carried > delta {
@@ -489,10 +501,16 @@ impl Gatherer {
     }
 }
 
+/// A node whose shaft is not clear and that carries more than this many δ is split
+/// rather than trusted to its shadow rays.
+const BLIND_NODE: f32 = 64.0;
+
 /// A source node whose form factor from x exceeds this, and whose centroid lies within
 /// [`NEAR_RADII`] of its bounding radii from x, has its radiosity gathered at its centroid.
-const NEAR_FACTOR: f32 = 0.01;
+const NEAR_FACTOR: f32 = 1e-3;
 const NEAR_RADII: f32 = 2.0;
+/// How many times the near field is gathered in turn.
+const NEAR_DEPTH: u8 = 1;
 
 /// Largest distance from `c` to a corner of `v`.
 fn radius(v: &[Vec3; 3], c: Vec3) -> f32 {

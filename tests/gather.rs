@@ -1,0 +1,227 @@
+//! The final gather (`probe`'s default) against closed forms and the path-traced
+//! reference: parallel and perpendicular plates down to 0.1 mm from their edges, the
+//! penumbra scene in its umbra and penumbra, and a sample of Cornell-box points.
+
+mod common;
+use common::quad_object;
+use glam::{DMat4, DVec3, Vec3};
+use radiosity::analytic::{
+    parallel_square, penumbra_floor, penumbra_grid, perpendicular_rectangle_corner,
+};
+use radiosity::cli::SolveOptions;
+use radiosity::pipeline::Prepared;
+use radiosity::scene::{Material, Scene, builtin};
+use std::f64::consts::PI;
+
+const RHO: f64 = 0.5;
+
+/// `scene` solved with the command line's defaults, then gathered at `points`.
+fn gathered(scene: &Scene, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {
+    let options = SolveOptions::default();
+    let prepared = Prepared::new(scene, &options.mesh_settings());
+    let mut solver = prepared
+        .solver(options.solver_settings_for(&prepared))
+        .unwrap();
+    solver.run(None, radiosity::cancel::never()).unwrap();
+    solver.gatherer(options.gather_settings()).at_points(points)
+}
+
+/// Two 1 m squares, an emitter of radiance 1 with ρ = 0 and a receiver of ρ = 0.5, the
+/// emitter `emitter` (corners), the receiver on y = 0 facing +y with x in ±0.5 and z in
+/// `z0..z0 + 1`.
+fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
+    let receiver = quad_object(
+        "receiver",
+        DMat4::IDENTITY,
+        [
+            [-0.5, 0.0, z0],
+            [-0.5, 0.0, z0 + 1.0],
+            [0.5, 0.0, z0 + 1.0],
+            [0.5, 0.0, z0],
+        ],
+        0,
+    );
+    Scene {
+        name: name.into(),
+        objects: vec![
+            receiver,
+            quad_object("emitter", DMat4::IDENTITY, emitter, 1),
+        ],
+        materials: vec![
+            Material::diffuse("receiver", Vec3::splat(RHO as f32)),
+            Material::emitter("emitter", Vec3::ZERO, Vec3::ONE),
+        ],
+        lights: Vec::new(),
+        environment: None,
+        warnings: Vec::new(),
+    }
+}
+
+fn worst(points: &[(DVec3, DVec3)], got: &[Vec3], exact: impl Fn(DVec3) -> f64) -> f64 {
+    points
+        .iter()
+        .zip(got)
+        .map(|((p, _), g)| {
+            let e = exact(*p);
+            let err = (g.x as f64 - e).abs() / e;
+            if err > 1e-3 {
+                eprintln!("  {p}: {} vs {e} ({err:.2e})", g.x);
+            }
+            err
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn parallel_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_edges() {
+    // Receiver z in ±0.5; the emitter 0.5 m above it, facing down.
+    let scene = plates(
+        "parallel plates",
+        [
+            [-0.5, 0.5, -0.5],
+            [0.5, 0.5, -0.5],
+            [0.5, 0.5, 0.5],
+            [-0.5, 0.5, 0.5],
+        ],
+        -0.5,
+    );
+    let mut pts = Vec::new();
+    for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
+        let c = 0.5 - d;
+        pts.extend([(c, 0.0), (0.0, c), (c, c), (-c, 0.3), (0.2, -c)]);
+    }
+    let pts: Vec<(DVec3, DVec3)> = pts
+        .into_iter()
+        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
+        .collect();
+    let got = gathered(&scene, &pts);
+    // B = ρ π L F(x) exactly (the emitter is black, nothing else is there). The gather sums
+    // exact point-to-polygon form factors of a uniform emitter with no occluder: only f32
+    // rounding is left, so 0.1 %, within the goal of 0.5 %.
+    let w = worst(&pts, &got, |p| {
+        RHO * PI * parallel_square(p.x, p.z, 0.5, 0.5)
+    });
+    assert!(w < 1e-3, "worst relative error {w:.2e}");
+}
+
+#[test]
+fn perpendicular_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_contact() {
+    // Receiver z in 0..1; the emitter wall stands on its edge z = 0, facing +z.
+    let scene = plates(
+        "perpendicular plates",
+        [
+            [-0.5, 0.0, 0.0],
+            [0.5, 0.0, 0.0],
+            [0.5, 1.0, 0.0],
+            [-0.5, 1.0, 0.0],
+        ],
+        0.0,
+    );
+    let mut pts = Vec::new();
+    for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
+        pts.extend([(0.0, d), (0.5 - 1e-3, d), (-0.3, d)]);
+    }
+    let pts: Vec<(DVec3, DVec3)> = pts
+        .into_iter()
+        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
+        .collect();
+    let got = gathered(&scene, &pts);
+    // Howell's catalogue, the two rectangles left and right of the point; as above, only
+    // rounding is left (0.1 %).
+    let w = worst(&pts, &got, |p| {
+        RHO * PI
+            * (perpendicular_rectangle_corner(1.0, 0.5 - p.x, p.z)
+                + perpendicular_rectangle_corner(1.0, p.x + 0.5, p.z))
+    });
+    assert!(w < 1e-3, "worst relative error {w:.2e}");
+}
+
+#[test]
+fn penumbra_scene_matches_the_closed_form_in_umbra_and_penumbra() {
+    let scene = builtin::penumbra();
+    let pts = penumbra_grid();
+    let got = gathered(&scene, &pts);
+    let exact: Vec<f64> = pts.iter().map(|(p, _)| penumbra_floor(p.x, p.z)).collect();
+    let peak = exact.iter().copied().fold(0.0, f64::max);
+    let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+    for ((g, e), (p, _)) in got.iter().zip(&exact).zip(&pts) {
+        let d = g.x as f64 - e;
+        num += d * d;
+        den += e * e;
+        max = max.max(d.abs() / peak);
+        if d.abs() > 1e-2 * peak {
+            eprintln!("  {p}: {} vs {e}", g.x);
+        }
+    }
+    let rms = (num / den).sqrt();
+    eprintln!("penumbra: RMS {rms:.2e}, worst {max:.2e} of the peak");
+    // The floor's light comes straight from the emitter past the occluder (everything
+    // else is black), so the gather's error is its visibility estimate alone: nodes split
+    // while their shadow rays disagree and they carry more than δ = 0.05 % of the point's
+    // light, and a node at the last level takes 16 strata; along a shadow boundary some 20
+    // to 30 nodes stop splitting at that allowance. Measured: 0.13 % RMS, 0.99 % of the
+    // peak at the worst point (1.7 % of its own value, in the penumbra). Bound: 0.5 % RMS
+    // (the goal), 1.5 % of the peak at any point.
+    assert!(rms < 5e-3 && max < 1.5e-2, "RMS {rms:.2e}, worst {max:.2e}");
+}
+
+#[test]
+fn cornell_box_matches_the_path_traced_reference_at_every_class_of_point() {
+    use radiosity::reference::probes::{ProbeCounts, pick};
+    use radiosity::reference::{ReferenceSettings, Surfaces, estimate};
+    let scene = builtin::cornell_box();
+    let surfaces = Surfaces::new(&scene);
+    let bvh = radiosity::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
+    // A seed the bench does not use: points nobody tuned on.
+    let counts = ProbeCounts {
+        uniform: 20,
+        near_edges: 20,
+        penumbra: 10,
+        umbra: 10,
+    };
+    let probes = pick(&surfaces, &bvh, &counts, 7);
+    let points: Vec<(DVec3, DVec3)> = probes.iter().map(|p| (p.point, p.normal)).collect();
+    let settings = ReferenceSettings {
+        rel_error: 0.01,
+        ..Default::default()
+    };
+    let truth = estimate(
+        &scene,
+        &points,
+        &settings,
+        &|_, _, _| {},
+        radiosity::cancel::never(),
+    )
+    .unwrap();
+    let got = gathered(&scene, &points);
+    let mean = truth.iter().map(|t| t.value).sum::<DVec3>() / truth.len() as f64;
+    let floor = mean * 0.02;
+    let mut squares = 0.0;
+    for ((g, t), p) in got.iter().zip(&truth).zip(&probes) {
+        let scale = t.value.max(floor).length();
+        let err = (g.as_dvec3() - t.value).length() / scale;
+        let sigma = t.std_error.length() / scale;
+        squares += err * err;
+        // Measured on the bench's 300 points (a 0.4 % reference): 0.9 % RMS, 5.6 % at the
+        // worst point (2.8 mm from a corner where three faces meet, where the solution's
+        // light near the corner enters through the nearest sources' own gathers). Bound
+        // per point: 3σ of this reference plus 6 %.
+        assert!(
+            err <= 3.0 * sigma + 0.06,
+            "{:?} at {} (normal {}): {g} vs {} ± {}",
+            p.class,
+            p.point,
+            p.normal,
+            t.value,
+            t.std_error
+        );
+    }
+    let rms = (squares / got.len() as f64).sqrt();
+    eprintln!(
+        "Cornell box: gather vs reference RMS {rms:.3e} over {} points",
+        got.len()
+    );
+    // 0.9 % measured against a 0.4 % reference; this 1 % reference adds about 0.8 % in
+    // quadrature. Bound 2 %.
+    assert!(rms <= 0.02, "RMS {rms}");
+}
