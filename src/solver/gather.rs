@@ -25,6 +25,11 @@
 //!     nodes carrying more than 16 δ) estimate it, and where they disagree (a shadow boundary
 //!     crosses the node) the node is split while it carries more than δ; at the last level a
 //!     disagreeing node takes 16 strata.
+//!   - The near field: a node x lies within two of its radii of (the wall beside a corner,
+//!     the floor at the foot of a block) is split down to the last level, and the last
+//!     level's nodes within twelve radii have their radiosity gathered at their centroids
+//!     in turn (one level deep, at a coarser error) instead of read from the mesh, which
+//!     does not resolve the light within millimetres of a corner or a contact.
 //!   - A cluster contributes its mean radiosity through its projected area (as the
 //!     hierarchical solver's cluster links do) times the visibility of its sample patches,
 //!     when its bound A · B_max / (π gap²) is below δ; otherwise its children are visited.
@@ -269,7 +274,10 @@ impl Gatherer {
         );
         let (external, _) = irradiance(&mesh.frame(), &self.bvh, &self.external, x, n, own, seed);
         let scale = irradiance_of(self.radiosity[i], self.reflectance[i], self.emission[i]);
-        let delta = self.settings.error * scale.max(self.floor);
+        // The near field's own gathers reach x through a form factor below 1 and are many:
+        // they are allowed a coarser error per node.
+        let coarser = if depth > 0 { NEAR_ERROR } else { 1.0 };
+        let delta = self.settings.error * coarser * scale.max(self.floor);
         let gathered = self.gathered((x, n, own, delta, seed), depth);
         self.emission[i] + self.reflectance[i] * (external + gathered)
     }
@@ -291,7 +299,7 @@ impl Gatherer {
         mean: Vec3,
         factor: f32,
     ) -> Vec3 {
-        if depth < NEAR_DEPTH && factor > NEAR_FACTOR && (c - x).length() < NEAR_RADII * r {
+        if depth < NEAR_DEPTH && factor > NEAR_FACTOR && (c - x).length() < GATHER_RADII * r {
             self.at_depth(e, c, depth + 1)
         } else {
             mean
@@ -434,6 +442,14 @@ impl Gatherer {
         if carried <= 0.0 {
             return Visit::Skip;
         }
+        // A node x lies within two radii of (the wall beside a corner, the floor at the foot
+        // of a block) is split down to the last level whatever the solution says there: the
+        // mesh does not resolve the light within millimetres of x, and the last level's
+        // nodes near x have their radiosity gathered at them (`source_value`).
+        let c = (verts[0] + verts[1] + verts[2]) / 3.0;
+        if can_open && carried > delta && (c - x).length() < NEAR_RADII * radius(verts, c) {
+            return Visit::Open;
+        }
         let eps = self.mesh.epsilon();
         let base = verts.map(|v| v + normal * eps);
         let skip = [own, triangle];
@@ -505,10 +521,18 @@ impl Gatherer {
 /// rather than trusted to its shadow rays.
 const BLIND_NODE: f32 = 64.0;
 
-/// A source node whose form factor from x exceeds this, and whose centroid lies within
-/// [`NEAR_RADII`] of its bounding radii from x, has its radiosity gathered at its centroid.
-const NEAR_FACTOR: f32 = 1e-3;
+/// A node whose centroid lies within this many of its bounding radii from x is split
+/// while it can be.
 const NEAR_RADII: f32 = 2.0;
+/// A leaf or virtual node whose form factor from x exceeds [`NEAR_FACTOR`] and whose
+/// centroid lies within [`GATHER_RADII`] of its radii from x has its radiosity gathered at
+/// its centroid, with [`NEAR_ERROR`] times the error allowed per node. Measured on the
+/// Cornell box's contact points (block sides 0.1–2 mm above the floor) against the path
+/// tracer: 2 radii left them 2.6 % RMS (8.5 % max), 12 radii 1.4 % (4 %); 64× the error
+/// in those gathers changed the result by less than 0.1 % and cut the time sixfold.
+const NEAR_FACTOR: f32 = 1e-3;
+const GATHER_RADII: f32 = 12.0;
+const NEAR_ERROR: f32 = 64.0;
 /// How many times the near field is gathered in turn.
 const NEAR_DEPTH: u8 = 1;
 
