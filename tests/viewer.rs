@@ -436,3 +436,116 @@ fn which(program: &str) -> Result<PathBuf, ()> {
         .find(|p| p.is_file())
         .ok_or(())
 }
+
+#[test]
+fn render_final_gather_agrees_with_the_rasterised_picture_and_the_reference() {
+    // The final-gathered picture (CPU: camera rays, the gather, the same exposure and tone
+    // map) against the rasterised one (GPU) of the same solve and camera: where the light
+    // is smooth they show the same values, so most pixels agree closely; they differ at
+    // corners, contacts and shadow edges, where the gather follows the truth.
+    let dir = tempdir();
+    let mut images = Vec::new();
+    for gather in [false, true] {
+        let out = dir.join(format!("gathered_{gather}.png"));
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"));
+        cmd.args([
+            "render",
+            "builtin:cornell",
+            "--size",
+            "160x120",
+            "--ev",
+            "1",
+            "--out",
+        ])
+        .arg(&out);
+        if gather {
+            cmd.args(["--final-gather", "--samples", "1"]);
+        }
+        assert!(cmd.status().unwrap().success());
+        images.push(image::open(&out).unwrap().to_rgba8());
+    }
+    assert_bleeding(&images[1], 0, 0, 160, 120, "final gather");
+    // Pixels of the box (brighter than the dark background in the rasterised picture).
+    let mut diffs: Vec<i32> = images[0]
+        .pixels()
+        .zip(images[1].pixels())
+        .filter(|(a, _)| a[0].max(a[1]).max(a[2]) > 60)
+        .map(|(a, b)| {
+            (0..3)
+                .map(|c| (a[c] as i32 - b[c] as i32).abs())
+                .max()
+                .unwrap()
+        })
+        .collect();
+    diffs.sort();
+    let median = diffs[diffs.len() / 2];
+    let p90 = diffs[diffs.len() * 9 / 10];
+    eprintln!("final gather vs raster: median {median}, 90th percentile {p90} (of 255)");
+    // A few percent of light is 2–4 sRGB levels at mid grey; a wrong exposure, tone map or
+    // camera ray would move most pixels by tens of levels.
+    assert!(median <= 4 && p90 <= 16, "median {median}, p90 {p90}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
+    use glam::DVec3;
+    use radiosity::reference::{ReferenceSettings, estimate};
+    use radiosity::view::gathered::GatheredView;
+    let scene = radiosity::scene::builtin::cornell_box();
+    let options = radiosity::cli::SolveOptions::default();
+    let prepared = radiosity::pipeline::Prepared::new(&scene, &options.mesh_settings());
+    let mut solver = prepared
+        .solver(options.solver_settings_for(&prepared))
+        .unwrap();
+    solver.run(None, radiosity::cancel::never()).unwrap();
+    let gatherer = solver.gatherer(options.gather_settings());
+    let camera = radiosity::view::default_camera(solver.mesh(), &prepared.bvh);
+    let view = GatheredView {
+        gatherer: &gatherer,
+        mesh: solver.mesh(),
+        bvh: &prepared.bvh,
+        camera: &camera,
+        size: [64, 48],
+        samples: 1,
+        display: Default::default(),
+    };
+    // The surface points a grid of pixel centres sees, and the gather there.
+    let mesh = solver.mesh();
+    let mut points = Vec::new();
+    let mut values = Vec::new();
+    for y in (1..48).step_by(3) {
+        for x in (1..64).step_by(3) {
+            let (o, d) = camera.ray(x as f32 + 0.5, y as f32 + 0.5, 64.0, 48.0);
+            if let Some((e, p)) = view.visible_point(o, d) {
+                let n = mesh.elements[e as usize].normal;
+                points.push((mesh.origin + p.as_dvec3(), n.as_dvec3()));
+                values.push(gatherer.at(e, p));
+            }
+        }
+    }
+    assert!(points.len() > 60, "{} points", points.len());
+    let truth = estimate(
+        &scene,
+        &points,
+        &ReferenceSettings {
+            rel_error: 0.01,
+            ..Default::default()
+        },
+        &|_, _, _| {},
+        radiosity::cancel::never(),
+    )
+    .unwrap();
+    let mean = truth.iter().map(|t| t.value).sum::<DVec3>() / truth.len() as f64;
+    for ((g, t), (p, _)) in values.iter().zip(&truth).zip(&points) {
+        let scale = t.value.max(mean * 0.02).length();
+        let err = (g.as_dvec3() - t.value).length() / scale;
+        // As in tests/gather.rs: 3σ of the reference plus 5 %.
+        assert!(
+            err <= 3.0 * t.std_error.length() / scale + 0.05,
+            "pixel point {p}: {g} vs {} ± {}",
+            t.value,
+            t.std_error
+        );
+    }
+}

@@ -230,6 +230,13 @@ pub struct RenderOptions {
     /// Draw element edges.
     #[arg(long)]
     pub wireframe: bool,
+    /// Gather every pixel's visible point (the final gather, as `probe` reports it)
+    /// instead of drawing the mesh solution.
+    #[arg(long)]
+    pub final_gather: bool,
+    /// With --final-gather: samples per pixel side (N² per pixel, anti-aliasing).
+    #[arg(long, default_value_t = 2)]
+    pub samples: u32,
 }
 
 #[cfg(feature = "viewer")]

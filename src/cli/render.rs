@@ -1,11 +1,14 @@
 //! `radiosity render`: solve, then draw the viewer's picture offscreen with the same wgpu
-//! renderer, camera defaults and auto exposure.
+//! renderer, camera defaults and auto exposure, or gather every pixel's visible point
+//! (`--final-gather`) with the same camera, exposure and tone mapping.
 
 use super::options::{RenderOptions, SolveOptions};
 use super::{load_scene, prepare, run_with_progress};
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
 use crate::view;
+use crate::view::camera::Camera;
+use crate::view::gathered::{GatheredView, to_image};
 use crate::view::render::{Display, render_image};
 use anyhow::Result;
 use glam::Vec3;
@@ -23,6 +26,41 @@ pub fn render(
     let prepared = prepare(&s, options, quiet);
     let mut solver = prepared.solver(options.solver_settings_for(&prepared))?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;
+    if picture.final_gather {
+        anyhow::ensure!(
+            !picture.false_colour && !picture.wireframe,
+            "--final-gather draws tone-mapped light only (no --false-colour or --wireframe)"
+        );
+        let gatherer = solver.gatherer(options.gather_settings());
+        let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &solver.radiosity(), picture);
+        let view = GatheredView {
+            gatherer: &gatherer,
+            mesh: solver.mesh(),
+            bvh: &prepared.bvh,
+            camera: &camera,
+            size: [picture.size.0, picture.size.1],
+            samples: picture.samples,
+            display,
+        };
+        let bar = super::progress_bar(quiet);
+        bar.set_length(picture.size.1 as u64);
+        bar.set_message("final gather, rows");
+        let t = std::time::Instant::now();
+        let pixels = view.image(&|rows| bar.set_position(rows as u64));
+        bar.finish_and_clear();
+        view::write_png(out, &to_image(view.size, &pixels))?;
+        if !quiet {
+            eprintln!(
+                "rendered {} by final gather in {:.1} s ({}×{} pixels, {} samples each)",
+                out.display(),
+                t.elapsed().as_secs_f64(),
+                picture.size.0,
+                picture.size.1,
+                picture.samples.max(1).pow(2)
+            );
+        }
+        return Ok(());
+    }
     render_png(
         solver.mesh(),
         &prepared.bvh,
@@ -42,6 +80,29 @@ fn render_png(
     out: &Path,
     quiet: bool,
 ) -> Result<()> {
+    let (camera, display) = view_of(mesh, bvh, radiosity, picture);
+    let (image, adapter) = render_image(
+        mesh,
+        radiosity,
+        &camera,
+        &display,
+        [picture.size.0, picture.size.1],
+    )?;
+    view::write_png(out, &image)?;
+    if !quiet {
+        eprintln!("rendered {} with {adapter}", out.display());
+    }
+    Ok(())
+}
+
+/// The camera and display `picture` asks for: the viewer's starting camera and auto
+/// exposure unless given.
+fn view_of(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    radiosity: &[Vec3],
+    picture: &RenderOptions,
+) -> (Camera, Display) {
     let mut camera = view::default_camera(mesh, bvh);
     if let Some((yaw, pitch, zoom)) = picture.camera {
         camera.yaw = yaw.to_radians();
@@ -58,16 +119,5 @@ fn render_png(
         wireframe: picture.wireframe,
         selected: None,
     };
-    let (image, adapter) = render_image(
-        mesh,
-        radiosity,
-        &camera,
-        &display,
-        [picture.size.0, picture.size.1],
-    )?;
-    view::write_png(out, &image)?;
-    if !quiet {
-        eprintln!("rendered {} with {adapter}", out.display());
-    }
-    Ok(())
+    (camera, display)
 }

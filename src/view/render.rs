@@ -32,8 +32,24 @@ pub enum ToneMap {
     Aces,
 }
 
+/// The linear colour the 3D view is cleared to (behind the scene).
+pub const CLEAR_COLOUR: Vec3 = Vec3::new(0.02, 0.02, 0.025);
+
 impl ToneMap {
     pub const ALL: [ToneMap; 3] = [ToneMap::Clamp, ToneMap::Reinhard, ToneMap::Aces];
+
+    /// The operator on exposed linear radiance `l`, as the shader applies it
+    /// (`tonemap` in `shader.wgsl`).
+    pub fn apply(self, l: Vec3) -> Vec3 {
+        match self {
+            ToneMap::Clamp => l.clamp(Vec3::ZERO, Vec3::ONE),
+            ToneMap::Reinhard => l / (1.0 + l.dot(Vec3::new(0.2126, 0.7152, 0.0722))),
+            ToneMap::Aces => {
+                let (a, b, c, d, e) = (2.51, 0.03, 2.43, 0.59, 0.14);
+                ((l * (l * a + b)) / (l * (l * c + d) + e)).clamp(Vec3::ZERO, Vec3::ONE)
+            }
+        }
+    }
     pub fn name(self) -> &'static str {
         match self {
             ToneMap::Clamp => "clamp",
@@ -435,9 +451,9 @@ impl Renderer {
                     resolve_target: None,
                     ops: wgpu::Operations {
                         load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.02,
-                            g: 0.02,
-                            b: 0.025,
+                            r: CLEAR_COLOUR.x as f64,
+                            g: CLEAR_COLOUR.y as f64,
+                            b: CLEAR_COLOUR.z as f64,
                             a: 1.0,
                         }),
                         store: wgpu::StoreOp::Store,
