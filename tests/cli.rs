@@ -323,3 +323,44 @@ fn bench_edits_writes_one_row_per_edit() {
         assert!(r[1] > 0.0 && r[1] <= r[2], "{r:?}");
     }
 }
+
+#[test]
+fn bench_occlusion_writes_its_segments_for_another_ray_engine() {
+    // The file `scripts/embree_occlusion.py` reads: "RADSEG1", the triangle and segment
+    // counts, then the triangles and the segments as f32. The segments' ends lie on the
+    // scene's triangles, so every coordinate lies within the Cornell box's bounds (about
+    // ±0.3 m around its centre in the mesh frame).
+    let d = scratch_dir("cli-bench-occlusion");
+    let file = d.join("segments.bin");
+    let out = bin()
+        .args([
+            "bench",
+            "builtin:cornell",
+            "--occlusion",
+            "--segments",
+            "1000",
+            "--segments-out",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&file).unwrap();
+    assert_eq!(&bytes[..7], b"RADSEG1");
+    let count = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let (tris, segs) = (count(7), count(15));
+    assert_eq!(
+        tris,
+        radiosity::scene::builtin::cornell_box().triangle_count()
+    );
+    assert_eq!(segs, 1000);
+    assert_eq!(bytes.len(), 23 + 36 * tris + 24 * segs);
+    for c in bytes[23..].chunks(4) {
+        let v = f32::from_le_bytes(c.try_into().unwrap());
+        assert!(v.is_finite() && v.abs() < 0.35, "{v}");
+    }
+}

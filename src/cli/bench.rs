@@ -607,7 +607,7 @@ fn plot(rows: &[Row], title: &str, y_label: &str) -> Result<Vec<u8>> {
 
 /// `bench --occlusion`: segments between pairs of points drawn uniformly by area over the
 /// scene's triangles (fixed seed), timed single-threaded and on all threads.
-pub fn occlusion(scene: &Scene, segments: usize) -> Result<()> {
+pub fn occlusion(scene: &Scene, segments: usize, out: Option<&Path>) -> Result<()> {
     let t = Instant::now();
     let prepared = Prepared::new(scene, &Default::default());
     let setup = t.elapsed().as_secs_f64();
@@ -615,6 +615,22 @@ pub fn occlusion(scene: &Scene, segments: usize) -> Result<()> {
     let bvh = &prepared.bvh;
     let pairs = crate::accel::sample_segments(&mesh.triangles, segments)
         .ok_or_else(|| anyhow::anyhow!("{}: the scene has no surface area", scene.name))?;
+    if let Some(out) = out {
+        let mut bytes = b"RADSEG1".to_vec();
+        bytes.extend((mesh.triangles.len() as u64).to_le_bytes());
+        bytes.extend((pairs.len() as u64).to_le_bytes());
+        for t in &mesh.triangles {
+            for v in t {
+                bytes.extend(v.to_array().iter().flat_map(|c| c.to_le_bytes()));
+            }
+        }
+        for (a, b, _) in &pairs {
+            for v in [a, b] {
+                bytes.extend(v.to_array().iter().flat_map(|c| c.to_le_bytes()));
+            }
+        }
+        write_atomic(out, &bytes)?;
+    }
     let t = Instant::now();
     let blocked_1: usize = pairs
         .iter()

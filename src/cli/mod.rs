@@ -167,6 +167,12 @@ pub enum Command {
         /// Segments for --occlusion.
         #[arg(long, default_value_t = 1_000_000)]
         segments: usize,
+        /// With --occlusion: also write the scene's triangles and the segments to this file
+        /// for another ray engine (`scripts/embree_occlusion.py`): "RADSEG1", then the
+        /// triangle and segment counts as u64, the triangles (9 f32 each) and the segments
+        /// (6 f32 each), little-endian, in the mesh frame.
+        #[arg(long)]
+        segments_out: Option<PathBuf>,
         /// Measure material edits instead: after convergence, N reflectance changes of
         /// ±30 % on materials drawn with a fixed seed, one at a time; writes DIR/edits.csv
         /// (material,first_update_ms,converged_ms).
@@ -344,12 +350,13 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             occlusion,
             segments,
+            segments_out,
             edits,
             options,
         } => {
             let s = load_scene(&scene, &options, quiet)?;
             if occlusion {
-                return bench::occlusion(&s, segments);
+                return bench::occlusion(&s, segments, segments_out.as_deref());
             }
             let out = out.context("bench needs --out DIR (or --occlusion)")?;
             if let Some(n) = edits {
