@@ -14,6 +14,7 @@ use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
 use crate::scene::{Material, OpenError, Scene};
+use crate::solver::gather::{GatherSettings, Gatherer};
 use crate::solver::{PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome};
 use glam::{DMat4, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -67,6 +68,9 @@ pub enum Command {
     Export {
         path: PathBuf,
     },
+    /// Prepare the current solution for the final gather at points (answered by
+    /// `Event::Gatherer`).
+    Gather(GatherSettings),
     Shutdown,
 }
 
@@ -119,6 +123,12 @@ pub enum Event {
         job: u64,
         stats: Stats,
     },
+    /// The solution of snapshot `version`, prepared for the final gather.
+    Gatherer {
+        job: u64,
+        version: u64,
+        gatherer: Arc<Gatherer>,
+    },
     Failed {
         job: u64,
         error: JobError,
@@ -161,6 +171,7 @@ impl Event {
             | Event::Loaded { job, .. }
             | Event::Snapshot { job, .. }
             | Event::Converged { job, .. }
+            | Event::Gatherer { job, .. }
             | Event::Exported { job, .. }
             | Event::Refined { job, .. }
             | Event::Failed { job, .. } => *job,
@@ -383,6 +394,15 @@ fn run(
                                 error: JobError::Internal(panic_message(&panic)),
                             });
                         }
+                    }
+                }
+                Command::Gather(settings) => {
+                    if let Some(j) = &mut job {
+                        send(Event::Gatherer {
+                            job: j.id,
+                            version: j.version,
+                            gatherer: Arc::new(j.solver.gatherer(settings)),
+                        });
                     }
                 }
                 Command::Export { path } => {

@@ -549,3 +549,56 @@ fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
         );
     }
 }
+
+#[test]
+fn the_final_gather_fills_the_resting_view_and_restarts_when_the_camera_moves() {
+    let mut o = options("builtin:cornell");
+    o.mesh.max_elements = Some(400);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(720.0, 480.0))
+        .wgpu()
+        .build_eframe(move |cc| App::new(cc, o));
+    assert!(
+        step_until(&mut h, 180.0, |a| a.converged() || a.error().is_some()),
+        "no convergence in 180 s"
+    );
+    assert_eq!(h.state().final_gather_progress(), None);
+    h.get_by_label("Final gather").click();
+    // The worker prepares the solution, the camera rests, then the passes run coarse to
+    // fine: wait until the blocks of 8 and 4 pixels are done (a tenth of the work).
+    assert!(
+        step_until(&mut h, 120.0, |a| a
+            .final_gather_progress()
+            .is_some_and(|(done, _)| done >= 0.1)),
+        "the final gather did not start: {:?}",
+        h.state().final_gather_progress()
+    );
+    h.step();
+    let img = h.render().expect("render");
+    img.save(screenshots().join("kittest_final_gather.png"))
+        .unwrap();
+    let r = h.state().viewport_rect().expect("the 3D view was laid out");
+    let ppp = img.width() as f32 / 720.0;
+    let px = |v: f32| (v * ppp) as u32;
+    // The gathered picture over the view still shows the box's colour bleeding.
+    assert_bleeding(
+        &img,
+        px(r.min.x),
+        px(r.min.y),
+        px(r.max.x),
+        px(r.max.y),
+        "final gather",
+    );
+    // A camera move drops the pass at once; it starts again once the camera rests.
+    let c = r.center();
+    h.drag_at(c);
+    h.step();
+    h.hover_at(c + egui::vec2(40.0, 0.0));
+    h.step();
+    assert_eq!(h.state().final_gather_progress(), None);
+    h.drop_at(c + egui::vec2(40.0, 0.0));
+    assert!(
+        step_until(&mut h, 60.0, |a| a.final_gather_progress().is_some()),
+        "no new pass after the camera came to rest"
+    );
+}

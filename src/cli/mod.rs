@@ -79,6 +79,10 @@ pub enum Command {
         /// Turn the camera continuously (for measuring frame times while orbiting).
         #[arg(long)]
         orbit: bool,
+        /// Start with the final gather on (the resting view fills in with gathered pixels
+        /// once the solution has converged).
+        #[arg(long)]
+        final_gather: bool,
     },
     /// Solve, then render an image offscreen with the viewer's renderer.
     #[cfg(feature = "viewer")]
@@ -284,6 +288,7 @@ pub fn run(cli: Cli) -> Result<()> {
             frame_stats,
             wireframe,
             orbit,
+            final_gather,
         } => crate::view::app::run(crate::view::app::Options {
             scene: scene.unwrap_or_else(|| "builtin:cornell".into()),
             mesh: options.mesh_settings(),
@@ -293,6 +298,7 @@ pub fn run(cli: Cli) -> Result<()> {
             frame_stats,
             wireframe,
             orbit,
+            final_gather,
             auto_method: options.method.is_none(),
         }),
         #[cfg(feature = "viewer")]

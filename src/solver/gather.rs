@@ -135,6 +135,15 @@ pub struct Solution {
     pub emission: Vec<Vec3>,
 }
 
+impl std::fmt::Debug for Gatherer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gatherer")
+            .field("elements", &self.radiosity.len())
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Gatherer {
     /// Prepares `solution` (per element of `mesh`) for gathering with visibility from
     /// `bvh` and the `external` lights.

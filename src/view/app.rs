@@ -45,6 +45,8 @@ pub struct Options {
     pub wireframe: bool,
     /// Turn the camera a little every frame (to measure frame times while orbiting).
     pub orbit: bool,
+    /// Start with the final gather on.
+    pub final_gather: bool,
     /// Let the worker pick stochastic Jacobi for very large scenes (the method was not
     /// chosen on the command line).
     pub auto_method: bool,
@@ -64,6 +66,7 @@ impl Default for Options {
             frame_stats: None,
             wireframe: false,
             orbit: false,
+            final_gather: false,
             auto_method: true,
         }
     }
@@ -131,6 +134,8 @@ pub struct App {
     pub(super) viewport_rect: Option<egui::Rect>,
     /// Turn the camera a little every frame.
     pub(super) orbit: bool,
+    /// Fill the resting view with final-gathered pixels (see `final_gather`).
+    pub(super) final_gather: bool,
     /// The `--frame-stats` file.
     pub(super) frame_stats: Option<PathBuf>,
     /// Where the outcome of each frame-statistics write goes (to [`run`]).
@@ -170,6 +175,7 @@ impl App {
             ),
             viewport_rect: None,
             orbit: options.orbit,
+            final_gather: options.final_gather,
             frame_stats: options.frame_stats.clone(),
             frame_stats_written: None,
         };
@@ -238,6 +244,14 @@ impl App {
     /// Frame intervals recorded while solving, seconds.
     pub fn frame_times(&self) -> &[f32] {
         &self.frame_times
+    }
+
+    /// The final gather's pass over the view: the fraction done and whether it finished
+    /// (`None` while none runs).
+    pub fn final_gather_progress(&self) -> Option<(f32, bool)> {
+        let pass = self.session.pass.as_ref()?;
+        let p = pass.picture.lock().unwrap_or_else(|e| e.into_inner());
+        Some((p.done, p.finished))
     }
 
     /// Applies the worker's events of the current job; the others are stale.
@@ -322,6 +336,9 @@ impl App {
                     self.status = format!("refined: {} elements", mesh.elements.len());
                     self.session.mesh = Some(mesh);
                 }
+                Event::Gatherer {
+                    version, gatherer, ..
+                } => self.session.gatherer = Some((version, gatherer)),
                 Event::Exported { result, .. } => match result {
                     Ok(p) => self.status = format!("exported {}", p.display()),
                     Err(e) => self.session.error = Some(e.to_string()),

@@ -88,11 +88,15 @@ impl GatheredView<'_> {
     }
 }
 
+/// A linear display colour as opaque sRGB-encoded RGBA bytes.
+pub fn encode(c: Vec3) -> [u8; 4] {
+    let e = |c: f32| (super::colour::linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+    [e(c.x), e(c.y), e(c.z), 255]
+}
+
 /// Linear display colours (rows from the top) as an sRGB-encoded image.
 pub fn to_image(size: [u32; 2], pixels: &[Vec3]) -> image::RgbaImage {
-    let encode = |c: f32| (super::colour::linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
     image::RgbaImage::from_fn(size[0], size[1], |x, y| {
-        let c = pixels[(y * size[0] + x) as usize];
-        image::Rgba([encode(c.x), encode(c.y), encode(c.z), 255])
+        image::Rgba(encode(pixels[(y * size[0] + x) as usize]))
     })
 }

@@ -20,6 +20,7 @@ pub mod camera;
 mod colour;
 mod edits;
 mod files;
+mod final_gather;
 pub mod gathered;
 mod gpu;
 mod panels;

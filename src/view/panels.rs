@@ -242,6 +242,12 @@ impl App {
             ui.selectable_value(&mut d.reconstruction, Reconstruction::Hermite, "Hermite");
         });
         ui.checkbox(&mut d.false_colour, "False colour (log radiosity)");
+        ui.checkbox(&mut self.final_gather, "Final gather")
+            .on_hover_text(
+                "While the camera rests on a converged solution, fill the view with the light \
+                 gathered at each pixel's point (what probe reports), coarse to fine",
+            );
+        let d = &mut self.display;
         let r = ui.add(egui::Slider::new(&mut d.ev, -20.0..=20.0).text("Exposure (EV)"));
         // Only a person's change turns auto exposure off (not the slider's own clamping).
         if r.changed() && (r.dragged() || r.clicked() || r.has_focus()) {

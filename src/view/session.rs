@@ -4,12 +4,15 @@
 //! the whole [`Session`], so nothing of one scene outlives it into the next.
 
 use super::app::App;
+use super::camera::Camera;
 use super::edits::Edits;
+use super::final_gather::Pass;
 use super::gpu::Uploads;
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
 use crate::scene::Material;
 use crate::solver::Stats;
+use crate::solver::gather::Gatherer;
 use crate::worker::{Command, ObjectInfo, Source, Stage};
 use glam::Vec3;
 use std::sync::Arc;
@@ -57,6 +60,14 @@ pub(super) struct Session {
     pub(super) solve_started: Option<Instant>,
     pub(super) edits: Edits,
     pub(super) uploads: Uploads,
+    /// The final gather of this scene: the newest prepared solution with the snapshot
+    /// version it was made from, the version asked for, when and where the camera came to
+    /// rest, the pass under way and its texture.
+    pub(super) gatherer: Option<(u64, Arc<Gatherer>)>,
+    pub(super) gatherer_asked: Option<u64>,
+    pub(super) camera_rest: Option<(Camera, Instant)>,
+    pub(super) pass: Option<Pass>,
+    pub(super) pass_texture: Option<eframe::egui::TextureHandle>,
 }
 
 impl Session {

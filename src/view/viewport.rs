@@ -3,8 +3,10 @@
 //! scene has no mesh yet.
 
 use super::app::App;
-use crate::worker::Stage;
+use super::final_gather::{Key, Pass, REST, colour_image};
+use crate::worker::{Command, Stage};
 use eframe::egui;
+use std::time::{Duration, Instant};
 
 impl App {
     /// The 3D view in the rest of `ui`. Left drag orbits, middle drag or shift+left drag
@@ -55,6 +57,7 @@ impl App {
                 egui::Color32::WHITE,
             );
         }
+        self.final_gather_ui(ui, rect, size);
         if self.session.mesh.is_none() {
             ui.painter().text(
                 rect.center(),
@@ -67,6 +70,118 @@ impl App {
                 egui::FontId::proportional(18.0),
                 egui::Color32::LIGHT_GRAY,
             );
+        }
+    }
+
+    /// The final gather over the 3D view (see `final_gather`): asks the worker for the
+    /// converged solution prepared for gathering, starts a pass once the camera has rested,
+    /// paints what it has so far over the rasterised picture, and says how far it is.
+    fn final_gather_ui(&mut self, ui: &egui::Ui, rect: egui::Rect, size: [u32; 2]) {
+        let s = &mut self.session;
+        if !self.final_gather {
+            s.pass = None;
+            s.pass_texture = None;
+            return;
+        }
+        let note = |text: String| {
+            ui.painter().text(
+                rect.left_bottom() + egui::vec2(8.0, -8.0),
+                egui::Align2::LEFT_BOTTOM,
+                text,
+                egui::FontId::proportional(14.0),
+                egui::Color32::LIGHT_GRAY,
+            );
+        };
+        let (Some(mesh), Some(bvh), Some(snap)) = (&s.mesh, &s.bvh, &s.snapshot) else {
+            return;
+        };
+        if self.display.false_colour || self.display.wireframe {
+            s.pass = None;
+            note("Final gather: shows light only (turn off false colour and wireframe)".into());
+            return;
+        }
+        if !s.converged {
+            s.pass = None;
+            s.pass_texture = None;
+            note("Final gather: waits for the solution to converge".into());
+            return;
+        }
+        let version = snap.version;
+        let Some(gatherer) = s.gatherer.as_ref().filter(|(v, _)| *v == version) else {
+            if s.gatherer_asked != Some(version) {
+                self.worker.send(Command::Gather(Default::default()));
+                s.gatherer_asked = Some(version);
+            }
+            note("Final gather: preparing the solution…".into());
+            ui.ctx().request_repaint_after(Duration::from_millis(100));
+            return;
+        };
+        let now = Instant::now();
+        let rested = match s.camera_rest {
+            Some((camera, since)) if camera == self.camera => now - since >= REST,
+            _ => {
+                s.camera_rest = Some((self.camera, now));
+                false
+            }
+        };
+        let key = Key {
+            camera: self.camera,
+            size,
+            ev: self.display.ev,
+            tonemap: self.display.tonemap,
+            version,
+        };
+        if s.pass.as_ref().is_some_and(|p| p.key != key) {
+            s.pass = None;
+            s.pass_texture = None;
+        }
+        if !rested {
+            ui.ctx().request_repaint_after(REST);
+            return;
+        }
+        let pass = s.pass.get_or_insert_with(|| {
+            Pass::start(
+                key,
+                gatherer.1.clone(),
+                mesh.clone(),
+                bvh.clone(),
+                self.display,
+            )
+        });
+        let (finished, done, level, seconds) = {
+            let mut p = pass.picture.lock().unwrap_or_else(|e| e.into_inner());
+            if p.changed {
+                p.changed = false;
+                let image = colour_image(&p);
+                match &mut s.pass_texture {
+                    Some(t) => t.set(image, egui::TextureOptions::NEAREST),
+                    None => {
+                        s.pass_texture = Some(ui.ctx().load_texture(
+                            "final gather",
+                            image,
+                            egui::TextureOptions::NEAREST,
+                        ))
+                    }
+                }
+            }
+            (p.finished, p.done, p.level, p.seconds)
+        };
+        if let Some(t) = &s.pass_texture {
+            ui.painter().image(
+                t.id(),
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+        }
+        if finished {
+            note(format!("Final gather: done in {seconds:.1} s"));
+        } else {
+            note(format!(
+                "Final gather: {:.0} % (blocks of {level} px), {seconds:.0} s",
+                done * 100.0
+            ));
+            ui.ctx().request_repaint_after(Duration::from_millis(100));
         }
     }
 
