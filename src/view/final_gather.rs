@@ -20,6 +20,11 @@ use std::time::{Duration, Instant};
 /// How long the camera must rest before gathering starts.
 pub(super) const REST: Duration = Duration::from_millis(300);
 
+/// The error the viewer's gather allows per node: 4× `probe`'s default. Measured on the
+/// Cornell box's 299 bench points against the path tracer: 1.36 % RMS against 1.16 %,
+/// with a 160 × 120 picture gathered 3.9× faster (2.0 s against 7.7 s on 2 cores).
+pub(super) const VIEW_GATHER_ERROR: f32 = 0.002;
+
 /// Block sizes of the passes, coarse to fine.
 const LEVELS: [u32; 4] = [8, 4, 2, 1];
 

@@ -56,14 +56,19 @@ impl GatheredView<'_> {
     }
 
     /// The element and point (mesh frame, on the element's plane) a ray from `origin` along
-    /// `dir` first meets on a side that faces it: the back of a single-sided surface is
-    /// passed through, as the rasteriser culls it. `None` when it leaves the scene.
+    /// `dir` first meets on a side that faces it: the back of a single-sided surface and a
+    /// covered patch (a ceiling under a flush lamp) are passed through, as the rasteriser
+    /// culls the one and does not draw the other. `None` when it leaves the scene.
     pub fn visible_point(&self, origin: Vec3, dir: Vec3) -> Option<(u32, Vec3)> {
         let (mut t0, mut skip) = (0.0, u32::MAX);
         for _ in 0..MAX_BACK_FACES {
             let hit = self.bvh.closest_hit(origin, dir, t0, f32::INFINITY, skip)?;
             let p = origin + dir * hit.t;
-            if let Some(e) = self.mesh.element_at(hit.triangle, p, -dir) {
+            let seen = self.mesh.element_at(hit.triangle, p, -dir).filter(|&e| {
+                let patch = self.mesh.elements[e as usize].patch;
+                !self.mesh.patches[patch as usize].covered
+            });
+            if let Some(e) = seen {
                 let element = &self.mesh.elements[e as usize];
                 let n = element.normal;
                 return Some((e, p - n * n.dot(p - element.verts[0])));

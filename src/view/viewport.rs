@@ -3,7 +3,8 @@
 //! scene has no mesh yet.
 
 use super::app::App;
-use super::final_gather::{Key, Pass, REST, colour_image};
+use super::final_gather::{Key, Pass, REST, VIEW_GATHER_ERROR, colour_image};
+use crate::solver::gather::GatherSettings;
 use crate::worker::{Command, Stage};
 use eframe::egui;
 use std::time::{Duration, Instant};
@@ -109,7 +110,10 @@ impl App {
         let version = snap.version;
         let Some(gatherer) = s.gatherer.as_ref().filter(|(v, _)| *v == version) else {
             if s.gatherer_asked != Some(version) {
-                self.worker.send(Command::Gather(Default::default()));
+                self.worker.send(Command::Gather(GatherSettings {
+                    error: VIEW_GATHER_ERROR,
+                    ..Default::default()
+                }));
                 s.gatherer_asked = Some(version);
             }
             note("Final gather: preparing the solution…".into());
