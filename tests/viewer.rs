@@ -503,8 +503,6 @@ fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
     let camera = radiosity::view::default_camera(solver.mesh(), &prepared.bvh);
     let view = GatheredView {
         gatherer: &gatherer,
-        mesh: solver.mesh(),
-        bvh: &prepared.bvh,
         camera: &camera,
         size: [64, 48],
         samples: 1,

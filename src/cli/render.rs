@@ -35,8 +35,6 @@ pub fn render(
         let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &solver.radiosity(), picture);
         let view = GatheredView {
             gatherer: &gatherer,
-            mesh: solver.mesh(),
-            bvh: &prepared.bvh,
             camera: &camera,
             size: [picture.size.0, picture.size.1],
             samples: picture.samples,

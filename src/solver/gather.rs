@@ -242,6 +242,16 @@ impl Gatherer {
         }
     }
 
+    /// The mesh the solution lies on (element indices refer to it).
+    pub fn mesh(&self) -> &Arc<Mesh> {
+        &self.mesh
+    }
+
+    /// The scene's triangles for visibility.
+    pub fn bvh(&self) -> &Arc<Bvh> {
+        &self.bvh
+    }
+
     /// B at each world-space point with the normal of the side asked about (as `probe`
     /// reads them); zero where no element faces that way.
     pub fn at_points(&self, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {

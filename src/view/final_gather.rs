@@ -8,8 +8,6 @@
 use super::camera::Camera;
 use super::gathered::{GatheredView, encode};
 use super::render::Display;
-use crate::accel::Bvh;
-use crate::mesh::Mesh;
 use crate::solver::gather::Gatherer;
 use eframe::egui;
 use rayon::prelude::*;
@@ -64,13 +62,7 @@ pub(super) struct Pass {
 
 impl Pass {
     /// Starts gathering `key`'s view of `gatherer` on a new thread.
-    pub(super) fn start(
-        key: Key,
-        gatherer: Arc<Gatherer>,
-        mesh: Arc<Mesh>,
-        bvh: Arc<Bvh>,
-        display: Display,
-    ) -> Pass {
+    pub(super) fn start(key: Key, gatherer: Arc<Gatherer>, display: Display) -> Pass {
         let [w, h] = key.size;
         let picture = Arc::new(Mutex::new(Picture {
             size: key.size,
@@ -86,8 +78,6 @@ impl Pass {
         std::thread::spawn(move || {
             let view = GatheredView {
                 gatherer: &gatherer,
-                mesh: &mesh,
-                bvh: &bvh,
                 camera: &key.camera,
                 size: key.size,
                 samples: 1,

@@ -5,9 +5,7 @@
 
 use super::camera::Camera;
 use super::render::{CLEAR_COLOUR, Display};
-use crate::accel::Bvh;
 use crate::geometry::sampling::{hash, unit};
-use crate::mesh::Mesh;
 use crate::solver::gather::Gatherer;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -16,11 +14,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// Back faces a pixel's ray passes through before it gives up.
 const MAX_BACK_FACES: usize = 16;
 
-/// What to gather: the solution, the scene it lies on, and the view.
+/// What to gather: the solution (with the mesh it lies on and the scene's BVH) and the
+/// view.
 pub struct GatheredView<'a> {
     pub gatherer: &'a Gatherer,
-    pub mesh: &'a Mesh,
-    pub bvh: &'a Bvh,
     pub camera: &'a Camera,
     pub size: [u32; 2],
     /// Samples per pixel side.
@@ -62,14 +59,15 @@ impl GatheredView<'_> {
     pub fn visible_point(&self, origin: Vec3, dir: Vec3) -> Option<(u32, Vec3)> {
         let (mut t0, mut skip) = (0.0, u32::MAX);
         for _ in 0..MAX_BACK_FACES {
-            let hit = self.bvh.closest_hit(origin, dir, t0, f32::INFINITY, skip)?;
+            let hit = (self.gatherer.bvh()).closest_hit(origin, dir, t0, f32::INFINITY, skip)?;
             let p = origin + dir * hit.t;
-            let seen = self.mesh.element_at(hit.triangle, p, -dir).filter(|&e| {
-                let patch = self.mesh.elements[e as usize].patch;
-                !self.mesh.patches[patch as usize].covered
+            let mesh = self.gatherer.mesh();
+            let seen = mesh.element_at(hit.triangle, p, -dir).filter(|&e| {
+                let patch = mesh.elements[e as usize].patch;
+                !mesh.patches[patch as usize].covered
             });
             if let Some(e) = seen {
-                let element = &self.mesh.elements[e as usize];
+                let element = &mesh.elements[e as usize];
                 let n = element.normal;
                 return Some((e, p - n * n.dot(p - element.verts[0])));
             }

@@ -93,7 +93,7 @@ impl App {
                 egui::Color32::LIGHT_GRAY,
             );
         };
-        let (Some(mesh), Some(bvh), Some(snap)) = (&s.mesh, &s.bvh, &s.snapshot) else {
+        let Some(snap) = &s.snapshot else {
             return;
         };
         if self.display.false_colour || self.display.wireframe {
@@ -143,15 +143,9 @@ impl App {
             ui.ctx().request_repaint_after(REST);
             return;
         }
-        let pass = s.pass.get_or_insert_with(|| {
-            Pass::start(
-                key,
-                gatherer.1.clone(),
-                mesh.clone(),
-                bvh.clone(),
-                self.display,
-            )
-        });
+        let pass = s
+            .pass
+            .get_or_insert_with(|| Pass::start(key, gatherer.1.clone(), self.display));
         let (finished, done, level, seconds) = {
             let mut p = pass.picture.lock().unwrap_or_else(|e| e.into_inner());
             if p.changed {
