@@ -57,6 +57,13 @@ fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
     }
 }
 
+/// Receiver points (x, 0, z) facing +y.
+fn on_receiver(xz: Vec<(f64, f64)>) -> Vec<(DVec3, DVec3)> {
+    xz.into_iter()
+        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
+        .collect()
+}
+
 fn worst(points: &[(DVec3, DVec3)], got: &[Vec3], exact: impl Fn(DVec3) -> f64) -> f64 {
     points
         .iter()
@@ -90,10 +97,7 @@ fn parallel_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_edges() {
         let c = 0.5 - d;
         pts.extend([(c, 0.0), (0.0, c), (c, c), (-c, 0.3), (0.2, -c)]);
     }
-    let pts: Vec<(DVec3, DVec3)> = pts
-        .into_iter()
-        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
-        .collect();
+    let pts = on_receiver(pts);
     let got = gathered(&scene, &pts);
     // B = ρ π L F(x) exactly (the emitter is black, nothing else is there). The gather sums
     // exact point-to-polygon form factors of a uniform emitter with no occluder: only f32
@@ -121,10 +125,7 @@ fn perpendicular_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_contact() 
     for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
         pts.extend([(0.0, d), (0.5 - 1e-3, d), (-0.3, d)]);
     }
-    let pts: Vec<(DVec3, DVec3)> = pts
-        .into_iter()
-        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
-        .collect();
+    let pts = on_receiver(pts);
     let got = gathered(&scene, &pts);
     // Howell's catalogue, the two rectangles left and right of the point; as above, only
     // rounding is left (0.1 %).

@@ -11,7 +11,9 @@ use crate::pipeline::probe_values;
 use crate::reference::probes::{self, Class, ProbeCounts};
 use crate::reference::{ReferenceSettings, Surfaces, estimate};
 use crate::scene::Scene;
-use crate::solver::{MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, SolverSettings, StepOutcome};
+use crate::solver::{
+    MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, SolverSettings, Stats, StepOutcome,
+};
 use anyhow::{Context, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -47,6 +49,33 @@ struct Row {
     max: f64,
     /// RMS and max of the per-point error for each class of point present.
     classes: Vec<(Class, f64, f64)>,
+}
+
+/// Overall (rms, max) and per class (class, rms, max) errors of one solution.
+type Errors = ((f64, f64), Vec<(Class, f64, f64)>);
+
+impl Row {
+    /// A row labelled `label` for a solver with `stats`, at `seconds`, with `errors`.
+    fn new(label: String, stats: &Stats, seconds: f64, ((rms, max), classes): Errors) -> Row {
+        Row {
+            label,
+            seconds,
+            iterations: stats.iterations,
+            rays: stats.rays,
+            unshot: stats.unshot_fraction,
+            residual: stats.residual,
+            rms,
+            max,
+            classes,
+        }
+    }
+}
+
+/// Prints the per-class lines under a method's summary.
+fn print_classes(classes: &[(Class, f64, f64)]) {
+    for (class, rms, max) in classes {
+        println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
+    }
 }
 
 /// Relative errors of `values` against `reference`, area-weighted over elements:
@@ -358,18 +387,8 @@ pub fn convergence(
         loop {
             let outcome = solver.step(&cancel)?;
             let s = solver.stats();
-            let ((rms, max), classes) = errors(solver.mesh(), &solver.radiosity());
-            rows.push(Row {
-                label: method.name().to_string(),
-                seconds: s.seconds,
-                iterations: s.iterations,
-                rays: s.rays,
-                unshot: s.unshot_fraction,
-                residual: s.residual,
-                rms,
-                max,
-                classes,
-            });
+            let errors = errors(solver.mesh(), &solver.radiosity());
+            rows.push(Row::new(method.name().to_string(), s, s.seconds, errors));
             if outcome != StepOutcome::Working || s.seconds >= time_limit {
                 break;
             }
@@ -392,9 +411,7 @@ pub fn convergence(
             }
         );
         println!("{line}");
-        for (class, rms, max) in &last.classes {
-            println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
-        }
+        print_classes(&last.classes);
         summary += &line;
         summary.push('\n');
         if let Reference::Points { points, .. } = &reference {
@@ -403,27 +420,18 @@ pub fn convergence(
             let t = Instant::now();
             let values = solver.gatherer(options.gather_settings()).at_points(points);
             let gather_seconds = t.elapsed().as_secs_f64();
-            let ((rms, max), classes) = point_stats(&values);
             let s = solver.stats();
+            let label = format!("{}+gather", method.name());
+            let row = Row::new(label, s, s.seconds + gather_seconds, point_stats(&values));
             println!(
-                "{:<17} final gather at {} points: {gather_seconds:.3} s, RMS {rms:.2e}, max {max:.2e}",
-                format!("{}+gather", method.name()),
-                points.len()
+                "{:<17} final gather at {} points: {gather_seconds:.3} s, RMS {:.2e}, max {:.2e}",
+                row.label,
+                points.len(),
+                row.rms,
+                row.max
             );
-            for (class, rms, max) in &classes {
-                println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
-            }
-            rows.push(Row {
-                label: format!("{}+gather", method.name()),
-                seconds: s.seconds + gather_seconds,
-                iterations: s.iterations,
-                rays: s.rays,
-                unshot: s.unshot_fraction,
-                residual: s.residual,
-                rms,
-                max,
-                classes,
-            });
+            print_classes(&row.classes);
+            rows.push(row);
         }
     }
     let (label, metric) = match &reference {

@@ -141,6 +141,11 @@ impl Element {
     pub fn centroid(&self) -> Vec3 {
         (self.verts[0] + self.verts[1] + self.verts[2]) / 3.0
     }
+
+    /// `p` (mesh frame) projected onto the element's plane.
+    pub fn project(&self, p: Vec3) -> Vec3 {
+        p - self.normal * self.normal.dot(p - self.verts[0])
+    }
 }
 
 /// A quadtree node: four children by midpoint subdivision, or a leaf holding an element.

@@ -264,11 +264,7 @@ impl Gatherer {
                     // the element: the nearest element may stop short of a point a few
                     // microns from an edge, and a point on the edge would see the face
                     // beyond it edge-on).
-                    Some((e, _)) => {
-                        let element = &self.mesh.elements[e as usize];
-                        let n = element.normal;
-                        self.at(e, p - n * n.dot(p - element.verts[0]))
-                    }
+                    Some((e, _)) => self.at(e, self.mesh.elements[e as usize].project(p)),
                     None => Vec3::ZERO,
                 }
             })

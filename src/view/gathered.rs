@@ -67,9 +67,7 @@ impl GatheredView<'_> {
                 !mesh.patches[patch as usize].covered
             });
             if let Some(e) = seen {
-                let element = &mesh.elements[e as usize];
-                let n = element.normal;
-                return Some((e, p - n * n.dot(p - element.verts[0])));
+                return Some((e, mesh.elements[e as usize].project(p)));
             }
             (t0, skip) = (hit.t, hit.triangle);
         }
