@@ -13,7 +13,7 @@ use crate::accel::Bvh;
 use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
-use crate::scene::{Material, OpenError, Scene};
+use crate::scene::{Image, Material, OpenError, Scene};
 use crate::solver::gather::{GatherSettings, Gatherer};
 use crate::solver::{PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome};
 use glam::{DMat4, Vec3};
@@ -96,16 +96,24 @@ pub enum Event {
         mesh: Arc<Mesh>,
         bvh: Arc<Bvh>,
         materials: Vec<Material>,
+        /// The images the materials' textures refer to.
+        images: Vec<Arc<Image>>,
         objects: Vec<ObjectInfo>,
         warnings: Vec<String>,
     },
-    /// The newest radiosity per element (with the ambient term for progressive display
-    /// unless turned off) and its Gouraud vertex values for the display mesh.
+    /// The newest radiosity B per element (with the ambient term for progressive display
+    /// unless turned off); the irradiance H = (B − E)/ρ it came from, per element and as
+    /// Gouraud values at the display mesh's vertices (what the display reconstructs); and
+    /// the reflectance ρ and emitted radiosity E per element it was solved with (the same
+    /// `Arc`s until an edit changes them).
     Snapshot {
         job: u64,
         version: u64,
         radiosity: Arc<[Vec3]>,
+        irradiance: Arc<[Vec3]>,
         vertex: Arc<[Vec3]>,
+        reflectance: Arc<[Vec3]>,
+        emission: Arc<[Vec3]>,
         stats: Stats,
     },
     /// Adaptive refinement replaced the mesh (same scene, finer elements); the next
@@ -178,6 +186,9 @@ impl Event {
         }
     }
 }
+
+/// The reflectance ρ and emitted radiosity E per element a snapshot was solved with.
+pub type Surfaces = (Arc<[Vec3]>, Arc<[Vec3]>);
 
 /// An object as the UI lists it.
 #[derive(Clone, Debug)]
@@ -286,6 +297,8 @@ struct Job {
     paused: bool,
     done: bool,
     last_snapshot: Option<Instant>,
+    /// The reflectance and emission last sent, reused while they do not change.
+    surfaces: Option<Surfaces>,
 }
 
 fn run(
@@ -488,15 +501,25 @@ fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
     let start = Instant::now();
     j.version += 1;
     let radiosity = j.solver.display_radiosity(j.ambient);
+    let (rho, e) = (j.solver.reflectance(), j.solver.emission());
+    let irradiance = crate::solver::irradiance(&radiosity, rho, e);
     let mesh = j.solver.mesh();
-    let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
+    let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
+    let (reflectance, emission) = match j.surfaces.take() {
+        Some((r, m)) if *r == *rho && *m == *e => (r, m),
+        _ => (Arc::from(rho), Arc::from(e)),
+    };
+    j.surfaces = Some((Arc::clone(&reflectance), Arc::clone(&emission)));
     j.snapshot_cost = start.elapsed();
     j.last_snapshot = Some(Instant::now());
     send(Event::Snapshot {
         job: j.id,
         version: j.version,
         radiosity: radiosity.into(),
+        irradiance: irradiance.into(),
         vertex: vertex.into(),
+        reflectance,
+        emission,
         stats: j.solver.stats().clone(),
     });
 }
@@ -628,6 +651,7 @@ fn loaded_event(id: u64, scene: &Scene, prepared: &Prepared) -> Event {
         mesh: Arc::clone(&prepared.mesh),
         bvh: Arc::clone(&prepared.bvh),
         materials: scene.materials.clone(),
+        images: scene.images.clone(),
         objects: scene
             .objects
             .iter()
@@ -690,6 +714,7 @@ fn load(
         paused: false,
         done: false,
         last_snapshot: None,
+        surfaces: None,
     }))
 }
 

@@ -53,6 +53,7 @@ fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
         ],
         lights: Vec::new(),
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }

@@ -55,6 +55,7 @@ fn scene() -> Scene {
             irradiance: Vec3::ONE,
         }],
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }

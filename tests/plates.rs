@@ -104,6 +104,7 @@ fn scene() -> Scene {
         ],
         lights: Vec::new(),
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }
@@ -199,6 +200,7 @@ fn perpendicular_scene() -> Scene {
         ],
         lights: Vec::new(),
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }

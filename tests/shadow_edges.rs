@@ -143,6 +143,7 @@ fn scene(lamp: Lamp, place: Place) -> Scene {
         ],
         lights: vec![lamp.light()],
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }

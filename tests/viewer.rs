@@ -15,7 +15,7 @@ use glam::Vec3;
 use radiosity::mesh::MeshSettings;
 use radiosity::solver::SolverSettings;
 use radiosity::view::app::{App, Options, Placement};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 fn screenshots() -> PathBuf {
@@ -125,6 +125,70 @@ fn click(h: &mut Harness<'_, App>, pos: egui::Pos2) {
     h.step();
     h.drop_at(pos);
     h.step();
+}
+
+/// Pixels of `img` within `r` (points, `ppp` pixels per point) that differ from their
+/// right-hand neighbour by more than 8 levels in some channel: edges in the picture.
+fn edge_pixels(img: &image::RgbaImage, r: egui::Rect, ppp: f32) -> usize {
+    let (x0, y0) = ((r.min.x * ppp) as u32, (r.min.y * ppp) as u32);
+    let (x1, y1) = ((r.max.x * ppp) as u32 - 1, (r.max.y * ppp) as u32);
+    let mut n = 0;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let (a, b) = (img.get_pixel(x, y).0, img.get_pixel(x + 1, y).0);
+            n += (0..3).any(|c| (a[c] as i32 - b[c] as i32).abs() > 8) as usize;
+        }
+    }
+    n
+}
+
+#[test]
+fn the_textures_switch_shows_textures_or_the_solution_alone() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/scenes/khronos-sample-assets/BoxTextured/glTF/BoxTextured.gltf");
+    if !path.is_file() && std::env::var_os("CI").is_none() {
+        eprintln!("skipped: {} is missing", path.display());
+        return;
+    }
+    let mut h = harness(options(path.to_str().unwrap()));
+    assert!(
+        step_until(&mut h, 120.0, |a| a.converged() || a.error().is_some()),
+        "no convergence in 120 s"
+    );
+    assert_eq!(h.state().error(), None);
+    h.step();
+    assert!(h.state().display().textures, "textures are on by default");
+    let textured = h.render().expect("render");
+    textured
+        .save(screenshots().join("kittest_box_textured.png"))
+        .unwrap();
+    let r = h.state().viewport_rect().expect("the 3D view was laid out");
+    let ppp = textured.width() as f32 / 1280.0;
+    h.get_by_label("Textures (T)").click();
+    h.step();
+    h.step();
+    assert!(
+        !h.state().display().textures,
+        "the checkbox did not turn textures off"
+    );
+    let plain = h.render().expect("render");
+    plain
+        .save(screenshots().join("kittest_box_plain.png"))
+        .unwrap();
+    // With textures the logo's edges are in the picture; without, only the box's outline
+    // and the edges between the triangles' mean colours.
+    let (with, without) = (edge_pixels(&textured, r, ppp), edge_pixels(&plain, r, ppp));
+    eprintln!("edge pixels: {with} with textures, {without} without");
+    assert!(
+        with > 3 * without,
+        "{with} edge pixels with textures, {without} without"
+    );
+    h.key_press(egui::Key::T);
+    h.step();
+    assert!(
+        h.state().display().textures,
+        "T did not toggle textures back on"
+    );
 }
 
 #[test]
@@ -507,6 +571,7 @@ fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
         size: [64, 48],
         samples: 1,
         display: Default::default(),
+        textures: &Default::default(),
     };
     // The surface points a grid of pixel centres sees, and the gather there.
     let mesh = solver.mesh();

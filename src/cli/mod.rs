@@ -76,6 +76,9 @@ pub enum Command {
         /// Start with the wireframe on.
         #[arg(long)]
         wireframe: bool,
+        /// Start with the textures off (each surface in the mean colour the solver used).
+        #[arg(long)]
+        no_textures: bool,
         /// Turn the camera continuously (for measuring frame times while orbiting).
         #[arg(long)]
         orbit: bool,
@@ -287,6 +290,7 @@ pub fn run(cli: Cli) -> Result<()> {
             screenshot_after,
             frame_stats,
             wireframe,
+            no_textures,
             orbit,
             final_gather,
         } => crate::view::app::run(crate::view::app::Options {
@@ -297,6 +301,7 @@ pub fn run(cli: Cli) -> Result<()> {
             screenshot_after,
             frame_stats,
             wireframe,
+            no_textures,
             orbit,
             final_gather,
             auto_method: options.method.is_none(),

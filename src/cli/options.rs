@@ -230,6 +230,10 @@ pub struct RenderOptions {
     /// Draw element edges.
     #[arg(long)]
     pub wireframe: bool,
+    /// Draw each surface in the mean colour the solver used instead of its base-colour
+    /// and emissive textures under the light.
+    #[arg(long)]
+    pub no_textures: bool,
     /// Gather every pixel's visible point (the final gather, as `probe` reports it)
     /// instead of drawing the mesh solution.
     #[arg(long)]

@@ -8,8 +8,8 @@ use crate::accel::Bvh;
 use crate::mesh::Mesh;
 use crate::view;
 use crate::view::camera::Camera;
-use crate::view::gathered::{GatheredView, to_image};
-use crate::view::render::{Display, render_image};
+use crate::view::gathered::{GatheredView, SurfaceTextures, to_image};
+use crate::view::render::{Display, Solution, render_image};
 use anyhow::Result;
 use glam::Vec3;
 use std::path::Path;
@@ -33,12 +33,17 @@ pub fn render(
         );
         let gatherer = solver.gatherer(options.gather_settings());
         let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &solver.radiosity(), picture);
+        let textures = SurfaceTextures {
+            materials: s.materials.clone(),
+            images: s.images.clone(),
+        };
         let view = GatheredView {
             gatherer: &gatherer,
             camera: &camera,
             size: [picture.size.0, picture.size.1],
             samples: picture.samples,
             display,
+            textures: &textures,
         };
         let bar = super::progress_bar(quiet);
         bar.set_length(picture.size.1 as u64);
@@ -59,29 +64,18 @@ pub fn render(
         }
         return Ok(());
     }
-    render_png(
-        solver.mesh(),
-        &prepared.bvh,
-        &solver.radiosity(),
-        picture,
-        out,
-        quiet,
-    )
-}
-
-/// Renders `radiosity` on `mesh` to the PNG `out` with the viewer's renderer.
-fn render_png(
-    mesh: &Mesh,
-    bvh: &Bvh,
-    radiosity: &[Vec3],
-    picture: &RenderOptions,
-    out: &Path,
-    quiet: bool,
-) -> Result<()> {
-    let (camera, display) = view_of(mesh, bvh, radiosity, picture);
+    let radiosity = solver.radiosity();
+    let solution = Solution {
+        radiosity: &radiosity,
+        reflectance: solver.reflectance(),
+        emission: solver.emission(),
+    };
+    let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &radiosity, picture);
     let (image, adapter) = render_image(
-        mesh,
-        radiosity,
+        solver.mesh(),
+        &solution,
+        &s.materials,
+        &s.images,
         &camera,
         &display,
         [picture.size.0, picture.size.1],
@@ -116,6 +110,7 @@ fn view_of(
         log_range: auto.map(|a| a.1).unwrap_or((-2.0, 2.0)),
         wireframe: picture.wireframe,
         selected: None,
+        textures: !picture.no_textures,
     };
     (camera, display)
 }

@@ -127,7 +127,8 @@ pub(super) fn build(
         }
     };
     check(cancel)?;
-    let mesh = emit(input, sized, cancel)?;
+    let mut mesh = emit(input, sized, cancel)?;
+    mesh.textures = super::texture::patch_textures(&mesh, scene);
     Ok((mesh, bvh))
 }
 
@@ -378,6 +379,7 @@ fn emit(input: Input, sized: Sized, cancel: &AtomicBool) -> Result<Mesh, Cancell
         element_size,
         warnings: input.warnings,
         cut_edges,
+        textures: Vec::new(),
     };
     let patch_len = (element_size * PATCH_PER_ELEMENT) as f32;
     let mut pieces = Vec::new();

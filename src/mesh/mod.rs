@@ -27,6 +27,7 @@ mod hard_shadows;
 mod shadow;
 mod sizing;
 mod split;
+mod texture;
 mod validate;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
@@ -34,6 +35,7 @@ pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
 };
 pub use hard_shadows::LightTargets;
+pub use texture::{PatchTexture, barycentric};
 
 use crate::accel::Bvh;
 use crate::cancel::Cancelled;
@@ -182,6 +184,9 @@ pub struct Mesh {
     /// Contact (D0) segments the triangles were split along, each triangle's one after
     /// another; mesh frame.
     pub cut_edges: Vec<[Vec3; 2]>,
+    /// Per patch, its texture coordinates and means for the display (`texture`); empty
+    /// when the scene has no textures.
+    pub textures: Vec<PatchTexture>,
 }
 
 impl Mesh {

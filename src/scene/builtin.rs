@@ -458,6 +458,7 @@ pub fn penumbra() -> Scene {
         ],
         lights: Vec::new(),
         environment: None,
+        images: Vec::new(),
         warnings: Vec::new(),
     }
 }

@@ -10,8 +10,10 @@
 pub mod builtin;
 pub mod gltf;
 mod open;
+pub mod textures;
 
 pub use open::{OpenError, open, open_cancellable};
+pub use textures::{Image, ImageLevel, Slot, TextureRef, TexturedTriangle, Wrap};
 
 use glam::{DMat4, DVec3, Vec3};
 
@@ -32,6 +34,14 @@ pub struct Material {
     /// uncovered fraction for `alphaMode: MASK` cut-outs, the transmission factor for
     /// `KHR_materials_transmission` glass. Shadow rays are attenuated by it.
     pub transmittance: f32,
+    /// The base-colour texture the display shows under the light (its mean over each
+    /// triangle is in `Object::reflectance_tint`).
+    pub base_texture: Option<TextureRef>,
+    /// The emissive texture the display shows (its mean is in `Object::emission_tint`).
+    pub emissive_texture: Option<TextureRef>,
+    /// `alphaMode: MASK` with a base-colour texture: the display discards texels whose
+    /// texture alpha is below this (the cutoff over `baseColorFactor.a`).
+    pub alpha_cutoff: Option<f32>,
 }
 
 impl Material {
@@ -43,6 +53,9 @@ impl Material {
             emission: Vec3::ZERO,
             double_sided: false,
             transmittance: 0.0,
+            base_texture: None,
+            emissive_texture: None,
+            alpha_cutoff: None,
         }
     }
 
@@ -74,6 +87,9 @@ pub struct Object {
     pub emission_tint: Vec<Vec3>,
     /// Per-triangle transmittance override (alpha-mask coverage); empty means the material's.
     pub transmittance: Vec<f32>,
+    /// Per-triangle texture coordinates and means for the display; empty when no triangle
+    /// of the object is textured.
+    pub textured: Vec<TexturedTriangle>,
     /// Local-to-world transform (f64 so that kilometre scenes far from the origin keep
     /// their precision until the mesh re-centres them).
     pub world_from_local: DMat4,
@@ -96,6 +112,14 @@ impl Object {
     /// The reflectance tint of triangle `t` (1 when untextured).
     pub fn reflectance_tint(&self, t: usize) -> Vec3 {
         self.reflectance_tint.get(t).copied().unwrap_or(Vec3::ONE)
+    }
+
+    /// Texture coordinates and means of triangle `t` (means of 1 when untextured).
+    pub fn textured(&self, t: usize) -> TexturedTriangle {
+        self.textured
+            .get(t)
+            .copied()
+            .unwrap_or(TexturedTriangle::NONE)
     }
 
     /// The emission tint of triangle `t` (1 when untextured).
@@ -155,6 +179,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Sky and sun; `None` means the scene is closed to the outside.
     pub environment: Option<Environment>,
+    /// The decoded images materials' textures refer to (`TextureRef::image`).
+    pub images: Vec<std::sync::Arc<Image>>,
     /// Problems that were recovered from while building the scene (one line each).
     pub warnings: Vec<String>,
 }

@@ -252,6 +252,11 @@ impl Gatherer {
         &self.bvh
     }
 
+    /// Element `e`'s reflectance ρ and emitted radiosity E, as solved with.
+    pub fn surface(&self, e: u32) -> (Vec3, Vec3) {
+        (self.reflectance[e as usize], self.emission[e as usize])
+    }
+
     /// B at each world-space point with the normal of the side asked about (as `probe`
     /// reads them); zero where no element faces that way.
     pub fn at_points(&self, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {

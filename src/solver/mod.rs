@@ -32,12 +32,14 @@ pub mod gather;
 mod gathering;
 pub mod hemicube;
 mod hierarchical;
+mod irradiance;
 mod progressive;
 mod refine;
 mod source_term;
 pub mod stochastic;
 mod types;
 
+pub use irradiance::irradiance;
 pub use types::{
     HierarchySettings, MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, PatchEdit, SolverError,
     SolverSettings, Stats, StepOutcome,
@@ -246,6 +248,16 @@ impl Solver {
     /// Whether the solve has converged.
     pub fn is_converged(&self) -> bool {
         self.phase == Phase::Done
+    }
+
+    /// Reflectance ρ per element, as solved with (after edits).
+    pub fn reflectance(&self) -> &[Vec3] {
+        &self.reflectance
+    }
+
+    /// Emitted radiosity E per element, as solved with (after edits).
+    pub fn emission(&self) -> &[Vec3] {
+        &self.emission
     }
 
     /// Radiosity for display: B plus, when `with_ambient`, ρ times the ambient term.

@@ -43,6 +43,8 @@ pub struct Options {
     pub frame_stats: Option<PathBuf>,
     /// Start with the wireframe on.
     pub wireframe: bool,
+    /// Start with the textures off (each surface in the mean colour the solver used).
+    pub no_textures: bool,
     /// Turn the camera a little every frame (to measure frame times while orbiting).
     pub orbit: bool,
     /// Start with the final gather on.
@@ -65,6 +67,7 @@ impl Default for Options {
             screenshot_after: 3.0,
             frame_stats: None,
             wireframe: false,
+            no_textures: false,
             orbit: false,
             final_gather: false,
             auto_method: true,
@@ -157,6 +160,7 @@ impl App {
             camera: Camera::default(),
             display: Display {
                 wireframe: options.wireframe,
+                textures: !options.no_textures,
                 ..Default::default()
             },
             auto_exposure: true,
@@ -266,6 +270,7 @@ impl App {
                     mesh,
                     bvh,
                     materials,
+                    images,
                     objects,
                     warnings,
                     ..
@@ -274,11 +279,12 @@ impl App {
                     if edits.base.is_empty() {
                         edits.base = objects.iter().map(|o| o.world_from_local).collect();
                     }
+                    self.session.materials = materials;
+                    self.session.images = images;
                     self.upload_mesh(&mesh);
                     let s = &mut self.session;
                     s.mesh = Some(mesh);
                     s.bvh = Some(bvh);
-                    s.materials = materials;
                     s.objects = objects;
                     s.warnings = warnings;
                     s.history.clear();
@@ -290,7 +296,10 @@ impl App {
                 Event::Snapshot {
                     version,
                     radiosity,
+                    irradiance,
                     vertex,
+                    reflectance,
+                    emission,
                     stats,
                     ..
                 } => {
@@ -316,7 +325,10 @@ impl App {
                         s.snapshot = Some(Snap {
                             version,
                             radiosity,
+                            irradiance,
                             vertex,
+                            reflectance,
+                            emission,
                         });
                     }
                 }
@@ -347,15 +359,16 @@ impl App {
         }
     }
 
-    /// The keyboard shortcuts (unless a text field has the keyboard): W wireframe, F frame
-    /// all, Ctrl+Z undo, Ctrl+Shift+Z redo, Space pause or resume.
+    /// The keyboard shortcuts (unless a text field has the keyboard): W wireframe, T
+    /// textures, F frame all, Ctrl+Z undo, Ctrl+Shift+Z redo, Space pause or resume.
     fn keys(&mut self, ctx: &egui::Context) {
         if ctx.egui_wants_keyboard_input() {
             return;
         }
-        let (w, f, undo, redo, space) = ctx.input(|i| {
+        let (w, t, f, undo, redo, space) = ctx.input(|i| {
             (
                 i.key_pressed(egui::Key::W) && i.modifiers.is_none(),
+                i.key_pressed(egui::Key::T) && i.modifiers.is_none(),
                 i.key_pressed(egui::Key::F) && i.modifiers.is_none(),
                 i.key_pressed(egui::Key::Z) && i.modifiers.command && !i.modifiers.shift,
                 i.key_pressed(egui::Key::Z) && i.modifiers.command && i.modifiers.shift,
@@ -364,6 +377,9 @@ impl App {
         });
         if w {
             self.display.wireframe = !self.display.wireframe;
+        }
+        if t {
+            self.display.textures = !self.display.textures;
         }
         if f {
             self.frame_all();

@@ -15,20 +15,4 @@ pub(super) fn turbo(t: f32) -> [f32; 3] {
     [r.clamp(0.0, 1.0), g.clamp(0.0, 1.0), b.clamp(0.0, 1.0)]
 }
 
-/// Linear to sRGB-encoded, one channel in [0, 1].
-pub(super) fn linear_to_srgb(x: f32) -> f32 {
-    if x <= 0.0031308 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// sRGB-encoded to linear, one channel in [0, 1].
-pub(super) fn srgb_to_linear(x: f32) -> f32 {
-    if x <= 0.04045 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
+pub(super) use crate::scene::textures::{linear_to_srgb, srgb_to_linear};

@@ -6,7 +6,7 @@
 //! for it, and the status line says how far it has come.
 
 use super::camera::Camera;
-use super::gathered::{GatheredView, encode};
+use super::gathered::{GatheredView, SurfaceTextures, encode};
 use super::render::Display;
 use crate::solver::gather::Gatherer;
 use eframe::egui;
@@ -33,6 +33,7 @@ pub(super) struct Key {
     pub size: [u32; 2],
     pub ev: f32,
     pub tonemap: super::render::ToneMap,
+    pub textures: bool,
     /// The snapshot version the gatherer was made from.
     pub version: u64,
 }
@@ -61,8 +62,14 @@ pub(super) struct Pass {
 }
 
 impl Pass {
-    /// Starts gathering `key`'s view of `gatherer` on a new thread.
-    pub(super) fn start(key: Key, gatherer: Arc<Gatherer>, display: Display) -> Pass {
+    /// Starts gathering `key`'s view of `gatherer` on a new thread, with the scene's
+    /// `textures` when the display shows them.
+    pub(super) fn start(
+        key: Key,
+        gatherer: Arc<Gatherer>,
+        display: Display,
+        textures: SurfaceTextures,
+    ) -> Pass {
         let [w, h] = key.size;
         let picture = Arc::new(Mutex::new(Picture {
             size: key.size,
@@ -82,6 +89,7 @@ impl Pass {
                 size: key.size,
                 samples: 1,
                 display,
+                textures: &textures,
             };
             fill(&view, &shared, &stop);
         });

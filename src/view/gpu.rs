@@ -7,9 +7,12 @@
 use super::app::App;
 use super::camera::Camera;
 use super::render::{Display, GpuMesh, Renderer, Target};
+use super::textures::{GpuTextures, TextureMemory};
 use crate::mesh::{Mesh, Reconstruction};
 use eframe::egui;
 use eframe::egui_wgpu;
+use glam::Vec3;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// The renderer and what it draws into, for the life of the window.
@@ -29,8 +32,12 @@ pub(super) struct Gpu {
 /// The opened scene on the GPU.
 #[derive(Default)]
 pub(super) struct Uploads {
+    /// The scene's images, uploaded when it loads.
+    textures: Option<GpuTextures>,
     /// The scene's current mesh.
     mesh: Option<GpuMesh>,
+    /// The reflectance and emission on the GPU (they change only with edits).
+    surfaces: Option<crate::worker::Surfaces>,
     /// The snapshot version whose values are on the GPU; 0 while `mesh` has none.
     pub(super) uploaded: u64,
     /// The snapshot version whose Hermite control points are on the GPU.
@@ -155,13 +162,31 @@ impl App {
     /// Puts a new mesh of the opened scene on the GPU. It shows nothing until a snapshot
     /// for it is uploaded; the snapshot held (for the old mesh) is dropped.
     pub(super) fn upload_mesh(&mut self, mesh: &Mesh) {
-        let u = &mut self.session.uploads;
+        let s = &mut self.session;
+        let u = &mut s.uploads;
         if let Some(g) = &self.gpu {
-            u.mesh = Some(g.renderer.upload(&g.state.device, mesh));
+            let (device, queue) = (&g.state.device, &g.state.queue);
+            let textures = u
+                .textures
+                .get_or_insert_with(|| GpuTextures::new(device, queue, &s.images));
+            u.mesh = Some(
+                g.renderer
+                    .upload(device, queue, mesh, &s.materials, textures),
+            );
         }
         u.uploaded = 0;
         u.bezier = 0;
-        self.session.snapshot = None;
+        u.surfaces = None;
+        s.snapshot = None;
+    }
+
+    /// What the scene's textures cost on the GPU (`None` before they are uploaded).
+    pub fn texture_memory(&self) -> Option<TextureMemory> {
+        self.session
+            .uploads
+            .textures
+            .as_ref()
+            .map(GpuTextures::memory)
     }
 
     /// Uploads the newest snapshot unless the last upload was too recent for its cost.
@@ -183,7 +208,15 @@ impl App {
         let Some(g) = &self.gpu else { return };
         let Some(gm) = &u.mesh else { return };
         let start = Instant::now();
-        if gm.set_values(&g.state.queue, &snap.radiosity, &snap.vertex) {
+        let same = |a: &Arc<[Vec3]>, b: &Arc<[Vec3]>| Arc::ptr_eq(a, b);
+        if u.surfaces
+            .as_ref()
+            .is_none_or(|(r, e)| !same(r, &snap.reflectance) || !same(e, &snap.emission))
+            && gm.set_surfaces(&g.state.queue, &snap.reflectance, &snap.emission)
+        {
+            u.surfaces = Some((Arc::clone(&snap.reflectance), Arc::clone(&snap.emission)));
+        }
+        if u.surfaces.is_some() && gm.set_values(&g.state.queue, &snap.irradiance, &snap.vertex) {
             u.uploaded = snap.version;
             // The edit's first snapshot is on the GPU and is drawn this frame.
             if let Some((t, Some(v))) = s.edits.edit_sent
@@ -219,10 +252,10 @@ impl App {
             self.status = "too many elements for Hermite display on this device".into();
             return;
         }
-        if snap.version != s.uploads.uploaded || snap.radiosity.len() != mesh.elements.len() {
+        if snap.version != s.uploads.uploaded || snap.irradiance.len() != mesh.elements.len() {
             return;
         }
-        let points = super::render::bezier_points(mesh, &snap.radiosity);
+        let points = super::render::bezier_points(mesh, &snap.irradiance);
         if gm.set_bezier(&g.state.queue, &points) {
             s.uploads.bezier = s.uploads.uploaded;
         }

@@ -26,6 +26,7 @@ mod gpu;
 mod panels;
 pub mod render;
 mod session;
+pub mod textures;
 mod viewport;
 
 use crate::accel::Bvh;

@@ -198,6 +198,23 @@ impl App {
             if let Some(t) = s.first_solution_seconds {
                 row("first solution", format!("{t:.2} s"));
             }
+            if let Some(m) = self.texture_memory()
+                && m.images > 0
+            {
+                let smaller = if m.downscaled > 0 {
+                    format!(", {} shown smaller to fit", m.downscaled)
+                } else {
+                    String::new()
+                };
+                row(
+                    "textures",
+                    format!(
+                        "{} images, {:.1} MB on the GPU{smaller}",
+                        m.images,
+                        m.bytes as f64 / 1e6
+                    ),
+                );
+            }
             if let Some(l) = self.session.edits.edit_latency {
                 row(
                     "last edit to frame",
@@ -235,6 +252,10 @@ impl App {
     fn display_ui(&mut self, ui: &mut egui::Ui) {
         let d = &mut self.display;
         ui.checkbox(&mut d.wireframe, "Wireframe (W)");
+        ui.checkbox(&mut d.textures, "Textures (T)").on_hover_text(
+            "Show each surface's base-colour and emissive textures under the solved light; \
+             off, each element shows the mean colour the solver used (the solution alone)",
+        );
         ui.horizontal(|ui| {
             ui.label("Shading");
             ui.selectable_value(&mut d.reconstruction, Reconstruction::Flat, "flat");

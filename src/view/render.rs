@@ -3,17 +3,23 @@
 //! target (sRGB) with a depth buffer. The viewer shows that target as an egui image; the
 //! command line reads it back to a PNG.
 //!
-//! Vertex data (one vertex per element corner) is uploaded once per mesh; a snapshot only
-//! writes two `Rgba32Float` textures (element values and display-vertex values), which the
-//! vertex shader reads with `textureLoad`, so streaming the solution costs 16 bytes per
-//! element and vertex, not a vertex-buffer rebuild.
+//! Vertex data (one vertex per element corner, with its texture coordinates) is uploaded
+//! once per mesh, sorted into one draw per combination of textures; a snapshot only
+//! writes two `Rgba32Float` textures (the irradiance H per element and per display
+//! vertex), which the vertex shader reads with `textureLoad`, so streaming the solution
+//! costs 16 bytes per element and vertex, not a vertex-buffer rebuild. The reflectance and
+//! emission per element (which edits change) are a third such texture. The shader shows
+//! B = ρ(uv)·H + E(uv) (`shader.wgsl`).
 
 use super::camera::Camera;
+use super::textures::GpuTextures;
 use crate::mesh::{Bezier, Mesh, Reconstruction};
+use crate::scene::{Material, Slot, TextureRef};
 use anyhow::{Context, Result, anyhow};
 use bytemuck::{Pod, Zeroable};
 use eframe::egui_wgpu::wgpu;
 use glam::Vec3;
+use std::collections::HashMap;
 
 /// Width of the value textures (within the 2048 every adapter supports).
 const VALUE_WIDTH: u32 = 2048;
@@ -81,6 +87,9 @@ pub struct Display {
     pub log_range: (f32, f32),
     pub wireframe: bool,
     pub selected: Option<u32>,
+    /// Show the base-colour and emissive textures under the light (off: each element in
+    /// the mean colour the solver used, the solution alone).
+    pub textures: bool,
 }
 
 impl Default for Display {
@@ -93,6 +102,7 @@ impl Default for Display {
             log_range: (-2.0, 2.0),
             wireframe: false,
             selected: None,
+            textures: true,
         }
     }
 }
@@ -110,7 +120,8 @@ struct Uniforms {
     width: u32,
     log_lo: f32,
     log_hi: f32,
-    pad: [f32; 3],
+    textures: u32,
+    pad: [f32; 2],
 }
 
 #[repr(C)]
@@ -122,22 +133,33 @@ struct Vertex {
     object: u32,
     /// Barycentric coordinates within the element (for the wireframe and Hermite).
     bary: [f32; 3],
+    /// Texture coordinates, base colour and emissive.
+    uv: [f32; 2],
+    uv_emissive: [f32; 2],
+    /// Texture alpha below which the fragment is cut out (`alphaMode: MASK`), else 0.
+    cutoff: f32,
 }
 
 /// Pipeline and uniforms: one per device.
 pub struct Renderer {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
+    texture_layout: wgpu::BindGroupLayout,
     uniforms: wgpu::Buffer,
 }
+
+/// The textures one draw samples: a material's base-colour and emissive textures.
+type TextureKey = (Option<TextureRef>, Option<TextureRef>);
 
 /// A mesh on the GPU with its value textures.
 pub struct GpuMesh {
     vertices: wgpu::Buffer,
-    count: u32,
+    /// Vertex ranges drawn with one texture bind group each.
+    draws: Vec<(std::ops::Range<u32>, wgpu::BindGroup)>,
     element_values: wgpu::Texture,
     vertex_values: wgpu::Texture,
     bezier: Option<wgpu::Texture>,
+    surfaces: wgpu::Texture,
     bind_group: wgpu::BindGroup,
     /// The mesh it was made from (to check snapshot sizes).
     pub elements: usize,
@@ -279,11 +301,38 @@ impl Renderer {
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ..texture_entry(3)
                 },
+                texture_entry(4),
+                texture_entry(5),
+            ],
+        });
+        let image_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let sampler_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            count: None,
+        };
+        let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("radiosity material textures layout"),
+            entries: &[
+                image_entry(0),
+                sampler_entry(1),
+                image_entry(2),
+                sampler_entry(3),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("radiosity view pipeline layout"),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(&layout), Some(&texture_layout)],
             immediate_size: 0,
         });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -295,7 +344,7 @@ impl Renderer {
                 buffers: &[Some(wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<Vertex>() as u64,
                     step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32, 4 => Float32x3],
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Uint32, 3 => Uint32, 4 => Float32x3, 5 => Float32x2, 6 => Float32x2, 7 => Float32],
                 })],
                 compilation_options: Default::default(),
             },
@@ -338,14 +387,23 @@ impl Renderer {
         Renderer {
             pipeline,
             layout,
+            texture_layout,
             uniforms,
         }
     }
 
-    /// Uploads `mesh`'s elements (one vertex per corner) and makes its value textures.
-    pub fn upload(&self, device: &wgpu::Device, mesh: &Mesh) -> GpuMesh {
+    /// Uploads `mesh`'s elements (one vertex per corner, drawn with the textures of
+    /// `materials` from `textures`) and makes its value textures.
+    pub fn upload(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        mesh: &Mesh,
+        materials: &[Material],
+        textures: &GpuTextures,
+    ) -> GpuMesh {
         use wgpu::util::DeviceExt;
-        let vertices = triangles(mesh);
+        let (vertices, groups) = triangles(mesh, materials);
         let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("radiosity view vertices"),
             contents: if vertices.is_empty() {
@@ -370,6 +428,9 @@ impl Renderer {
             .as_ref()
             .unwrap_or(&element_values)
             .create_view(&Default::default());
+        let surfaces = value_texture(device, 2 * mesh.elements.len(), "element surfaces");
+        let inverse_means = value_texture(device, 2 * mesh.elements.len(), "texture means");
+        write_values(queue, &inverse_means, &inverse_texture_means(mesh));
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("radiosity view bind group"),
             layout: &self.layout,
@@ -394,14 +455,57 @@ impl Renderer {
                     binding: 3,
                     resource: wgpu::BindingResource::TextureView(&bezier_view),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(
+                        &surfaces.create_view(&Default::default()),
+                    ),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(
+                        &inverse_means.create_view(&Default::default()),
+                    ),
+                },
             ],
         });
+        let draws = groups
+            .into_iter()
+            .map(|((base, emissive), range)| {
+                let (base_view, base_sampler) = textures.binding(base);
+                let (glow_view, glow_sampler) = textures.binding(emissive);
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("radiosity material textures"),
+                    layout: &self.texture_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::TextureView(base_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::Sampler(base_sampler),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(glow_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::Sampler(glow_sampler),
+                        },
+                    ],
+                });
+                (range, group)
+            })
+            .collect();
         GpuMesh {
             vertices: buffer,
-            count: vertices.len() as u32,
+            draws,
             element_values,
             vertex_values,
             bezier,
+            surfaces,
             bind_group,
             elements: mesh.elements.len(),
             display_vertices: mesh.display.positions.len(),
@@ -438,7 +542,8 @@ impl Renderer {
             width: VALUE_WIDTH,
             log_lo: display.log_range.0,
             log_hi: display.log_range.1,
-            pad: [0.0; 3],
+            textures: display.textures as u32,
+            pad: [0.0; 2],
         };
         queue.write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
         let mut encoder = device.create_command_encoder(&Default::default());
@@ -470,12 +575,15 @@ impl Renderer {
                 ..Default::default()
             });
             if let Some(mesh) = mesh
-                && mesh.count > 0
+                && !mesh.draws.is_empty()
             {
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &mesh.bind_group, &[]);
                 pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-                pass.draw(0..mesh.count, 0..1);
+                for (range, textures) in &mesh.draws {
+                    pass.set_bind_group(1, textures, &[]);
+                    pass.draw(range.clone(), 0..1);
+                }
             }
         }
         queue.submit([encoder.finish()]);
@@ -483,14 +591,34 @@ impl Renderer {
 }
 
 impl GpuMesh {
-    /// Writes a snapshot: per-element values and display-vertex values (sizes must match
-    /// the mesh; a mismatched snapshot, from another mesh, is ignored).
+    /// Writes a snapshot: the irradiance H per element and at the display vertices (sizes
+    /// must match the mesh; a mismatched snapshot, from another mesh, is ignored).
     pub fn set_values(&self, queue: &wgpu::Queue, elements: &[Vec3], vertices: &[Vec3]) -> bool {
         if elements.len() != self.elements || vertices.len() != self.display_vertices {
             return false;
         }
         write_values(queue, &self.element_values, elements);
         write_values(queue, &self.vertex_values, vertices);
+        true
+    }
+
+    /// Writes the reflectance ρ and emitted radiosity E per element the solution was
+    /// solved with (ignored when the sizes do not match the mesh).
+    pub fn set_surfaces(
+        &self,
+        queue: &wgpu::Queue,
+        reflectance: &[Vec3],
+        emission: &[Vec3],
+    ) -> bool {
+        if reflectance.len() != self.elements || emission.len() != self.elements {
+            return false;
+        }
+        let texels: Vec<Vec3> = reflectance
+            .iter()
+            .zip(emission)
+            .flat_map(|(r, e)| [*r, *e])
+            .collect();
+        write_values(queue, &self.surfaces, &texels);
         true
     }
 
@@ -607,32 +735,62 @@ pub fn read_back(
     image::RgbaImage::from_raw(w, h, pixels).context("readback size mismatch")
 }
 
-/// Renders `mesh` with element values `radiosity` to an image, offscreen.
+/// A solution as the renderer draws it, per element: the radiosity B (for the exposure)
+/// and the reflectance ρ and emitted radiosity E it was solved with.
+pub struct Solution<'a> {
+    pub radiosity: &'a [Vec3],
+    pub reflectance: &'a [Vec3],
+    pub emission: &'a [Vec3],
+}
+
+/// Renders `solution` on `mesh` to an image, offscreen, with the textures of `materials`
+/// (indices into `images`).
 pub fn render_image(
     mesh: &Mesh,
-    radiosity: &[Vec3],
+    solution: &Solution,
+    materials: &[Material],
+    images: &[std::sync::Arc<crate::scene::Image>],
     camera: &Camera,
     display: &Display,
     size: [u32; 2],
 ) -> Result<(image::RgbaImage, String)> {
     let (device, queue, adapter) = headless_device()?;
     let renderer = Renderer::new(&device);
-    let gpu = renderer.upload(&device, mesh);
-    let vertex = mesh.display.vertex_values(&mesh.elements, radiosity);
-    gpu.set_values(&queue, radiosity, &vertex);
+    let textures = GpuTextures::new(&device, &queue, images);
+    let gpu = renderer.upload(&device, &queue, mesh, materials, &textures);
+    let irradiance =
+        crate::solver::irradiance(solution.radiosity, solution.reflectance, solution.emission);
+    let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
+    gpu.set_values(&queue, &irradiance, &vertex);
+    gpu.set_surfaces(&queue, solution.reflectance, solution.emission);
     if display.reconstruction == Reconstruction::Hermite {
-        gpu.set_bezier(&queue, &bezier_points(mesh, radiosity));
+        gpu.set_bezier(&queue, &bezier_points(mesh, &irradiance));
     }
     let target = Target::new(&device, size);
     renderer.render(&device, &queue, &target, Some(&gpu), camera, display);
     Ok((read_back(&device, &queue, &target)?, adapter))
 }
 
-/// The Hermite control points of every element for `radiosity`.
-pub fn bezier_points(mesh: &Mesh, radiosity: &[Vec3]) -> Vec<Bezier> {
-    let h = mesh.display.hermite(&mesh.elements, radiosity);
+/// The Hermite control points of every element for element values `values`.
+pub fn bezier_points(mesh: &Mesh, values: &[Vec3]) -> Vec<Bezier> {
+    let h = mesh.display.hermite(&mesh.elements, values);
     (0..mesh.elements.len() as u32)
         .map(|e| crate::mesh::DisplayMesh::bezier(&mesh.elements, &h, e))
+        .collect()
+}
+
+/// Per element, 1 / the base and emissive textures' means over its triangle (1 where
+/// untextured), which turn the solved ρ_e and E_e into the texture's factors.
+fn inverse_texture_means(mesh: &Mesh) -> Vec<Vec3> {
+    mesh.elements
+        .iter()
+        .flat_map(|e| {
+            let means = mesh
+                .textures
+                .get(e.patch as usize)
+                .map_or([Vec3::ONE; 2], |t| t.mean);
+            means.map(|m| Vec3::ONE / m.max(Vec3::splat(1e-6)))
+        })
         .collect()
 }
 
@@ -641,23 +799,73 @@ pub fn bezier_points(mesh: &Mesh, radiosity: &[Vec3]) -> Vec<Bezier> {
 /// triangles through that vertex, so the rasteriser sees no T-junction (which leaves
 /// pixel cracks showing the background). Values are unchanged: a T-vertex carries the
 /// coarse edge's value, and every vertex carries its barycentric coordinates within the
-/// element for the wireframe and Hermite shading.
-fn triangles(mesh: &Mesh) -> Vec<Vertex> {
-    use std::collections::HashMap;
-    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+/// element for the wireframe and Hermite shading, and its texture coordinates.
+///
+/// The vertices come grouped by the textures of their material (`materials`), with each
+/// group's range: one draw per group.
+fn triangles(
+    mesh: &Mesh,
+    materials: &[Material],
+) -> (Vec<Vertex>, Vec<(TextureKey, std::ops::Range<u32>)>) {
     let midpoints: HashMap<(u32, u32), u32> = mesh
         .display
         .hanging
         .iter()
-        .map(|&[v, a, b]| (key(a, b), v))
+        .map(|&[v, a, b]| (edge_key(a, b), v))
         .collect();
-    let mut out = Vec::with_capacity(mesh.elements.len() * 3);
+    let mut groups: Vec<(TextureKey, Vec<Vertex>)> = Vec::new();
     for (i, e) in mesh.elements.iter().enumerate() {
+        let m = materials.get(mesh.patches[e.patch as usize].material as usize);
+        let key = m.map_or((None, None), |m| (m.base_texture, m.emissive_texture));
+        let group = match groups.iter().position(|(k, _)| *k == key) {
+            Some(g) => g,
+            None => {
+                groups.push((key, Vec::new()));
+                groups.len() - 1
+            }
+        };
+        let cutoff = m.and_then(|m| m.alpha_cutoff).unwrap_or(0.0);
+        element_triangles(mesh, &midpoints, i, cutoff, &mut groups[group].1);
+    }
+    let mut out = Vec::with_capacity(groups.iter().map(|(_, v)| v.len()).sum());
+    let mut ranges = Vec::with_capacity(groups.len());
+    for (key, vertices) in groups {
+        let start = out.len() as u32;
+        out.extend(vertices);
+        ranges.push((key, start..out.len() as u32));
+    }
+    (out, ranges)
+}
+
+/// An undirected edge between two display vertices.
+fn edge_key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// Element `i`'s triangles (see [`triangles`]), appended to `out`; `midpoints` maps an
+/// edge to the hanging vertex on it.
+fn element_triangles(
+    mesh: &Mesh,
+    midpoints: &HashMap<(u32, u32), u32>,
+    i: usize,
+    cutoff: f32,
+    out: &mut Vec<Vertex>,
+) {
+    let key = edge_key;
+    {
+        let e = &mesh.elements[i];
         let patch = &mesh.patches[e.patch as usize];
         // Hidden under a face pressed against it: drawing it would only z-fight.
         if patch.covered {
-            continue;
+            return;
         }
+        let texture = mesh.textures.get(e.patch as usize);
+        let uv = |p: Vec3, slot: Slot| {
+            texture.map_or([0.0; 2], |t| {
+                t.uv_at(slot, crate::mesh::barycentric(&patch.verts, p))
+                    .to_array()
+            })
+        };
         let object = patch.object;
         let c = e.corners;
         let corner = |k: usize| {
@@ -683,6 +891,9 @@ fn triangles(mesh: &Mesh) -> Vec<Vertex> {
                     vertex,
                     object,
                     bary,
+                    uv: uv(position, Slot::Base),
+                    uv_emissive: uv(position, Slot::Emissive),
+                    cutoff,
                 });
             }
         };
@@ -721,5 +932,4 @@ fn triangles(mesh: &Mesh) -> Vec<Vertex> {
             }
         }
     }
-    out
 }

@@ -10,7 +10,7 @@ use super::final_gather::Pass;
 use super::gpu::Uploads;
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
-use crate::scene::Material;
+use crate::scene::{Image, Material};
 use crate::solver::Stats;
 use crate::solver::gather::Gatherer;
 use crate::worker::{Command, ObjectInfo, Source, Stage};
@@ -21,10 +21,14 @@ use std::time::Instant;
 /// A solution snapshot from the worker.
 pub(super) struct Snap {
     pub(super) version: u64,
-    /// Radiosity per element.
+    /// Radiosity B per element.
     pub(super) radiosity: Arc<[Vec3]>,
-    /// Gouraud values per display-mesh vertex.
+    /// Irradiance H per element and its Gouraud values per display-mesh vertex.
+    pub(super) irradiance: Arc<[Vec3]>,
     pub(super) vertex: Arc<[Vec3]>,
+    /// Reflectance ρ and emitted radiosity E per element, as solved with.
+    pub(super) reflectance: Arc<[Vec3]>,
+    pub(super) emission: Arc<[Vec3]>,
 }
 
 /// The state of one opened scene. The default is "no scene" (job 0, nothing loaded).
@@ -41,8 +45,10 @@ pub(super) struct Session {
     pub(super) warnings: Vec<String>,
     pub(super) mesh: Option<Arc<Mesh>>,
     pub(super) bvh: Option<Arc<Bvh>>,
-    /// The scene's materials, with the edits made to them.
+    /// The scene's materials, with the edits made to them, and the images their textures
+    /// refer to.
     pub(super) materials: Vec<Material>,
+    pub(super) images: Vec<Arc<Image>>,
     pub(super) objects: Vec<ObjectInfo>,
     /// The newest snapshot received.
     pub(super) snapshot: Option<Snap>,

@@ -1,6 +1,10 @@
-// The 3D view: one vertex per element corner; radiosity comes from two textures (per
-// element for flat reconstruction, per display vertex for Gouraud) so a new snapshot is a
-// texture upload, never a vertex-buffer rebuild.
+// The 3D view: one vertex per element corner. The solution comes as the irradiance H in
+// two textures (per element for flat reconstruction, per display vertex for Gouraud), so a
+// new snapshot is a texture upload, never a vertex-buffer rebuild. The displayed
+// radiosity is B = ρ(uv)·H + E(uv): with textures on, ρ(uv) = ρ_e · T_base(uv) / mean_e
+// (ρ_e the element's reflectance as solved, mean_e the texture's mean over its triangle,
+// which ρ_e already carries) and likewise E(uv); with textures off, B = ρ_e·H + E_e, the
+// solution itself.
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -19,7 +23,8 @@ struct Uniforms {
     width: u32,
     log_lo: f32,
     log_hi: f32,
-    pad0: f32,
+    // 1: show the textures under the light.
+    textures: u32,
     pad1: f32,
     pad2: f32,
 };
@@ -27,8 +32,17 @@ struct Uniforms {
 @group(0) @binding(0) var<uniform> u: Uniforms;
 @group(0) @binding(1) var element_values: texture_2d<f32>;
 @group(0) @binding(2) var vertex_values: texture_2d<f32>;
-// Hermite: per element 10 control points (RGB), packed as 30 floats in 8 RGBA texels.
+// Hermite: per element 19 control points (RGB), packed as 57 floats in 15 RGBA texels.
 @group(0) @binding(3) var bezier_points: texture_2d<f32>;
+// Per element 2 texels: reflectance ρ_e and emitted radiosity E_e as solved.
+@group(0) @binding(4) var surfaces: texture_2d<f32>;
+// Per element 2 texels: 1 / the base and emissive textures' means over its triangle.
+@group(0) @binding(5) var inverse_means: texture_2d<f32>;
+// The textures of the draw's materials (1×1 white where a material has none).
+@group(1) @binding(0) var base_texture: texture_2d<f32>;
+@group(1) @binding(1) var base_sampler: sampler;
+@group(1) @binding(2) var emissive_texture: texture_2d<f32>;
+@group(1) @binding(3) var emissive_sampler: sampler;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -38,17 +52,30 @@ struct VertexIn {
     // Barycentric coordinates within the element (an element may be drawn as several
     // triangles where a finer neighbour's vertex lies on its edge).
     @location(4) bary: vec3<f32>,
+    // Texture coordinates of the base-colour and emissive textures.
+    @location(5) uv: vec2<f32>,
+    @location(6) uv_emissive: vec2<f32>,
+    // alphaMode MASK: texels with texture alpha below this are cut out (0 otherwise).
+    @location(7) cutoff: f32,
 };
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) smooth_b: vec3<f32>,
+    @location(0) smooth_h: vec3<f32>,
     // Constant over a triangle; interpolated anyway (portable to every backend).
-    @location(1) flat_b: vec3<f32>,
+    @location(1) flat_h: vec3<f32>,
     @location(2) bary: vec3<f32>,
     @location(3) selected: f32,
     // The element index (exact in f32 below 2^24), constant over the triangle.
     @location(4) element: f32,
+    @location(5) uv: vec2<f32>,
+    @location(6) uv_emissive: vec2<f32>,
+    @location(7) cutoff: f32,
+    // ρ_e, E_e and the inverse texture means, constant over the triangle.
+    @location(8) reflectance: vec3<f32>,
+    @location(9) emission: vec3<f32>,
+    @location(10) inverse_mean_base: vec3<f32>,
+    @location(11) inverse_mean_emissive: vec3<f32>,
 };
 
 fn fetch(t: texture_2d<f32>, i: u32) -> vec3<f32> {
@@ -59,11 +86,18 @@ fn fetch(t: texture_2d<f32>, i: u32) -> vec3<f32> {
 fn vs_main(v: VertexIn) -> VertexOut {
     var o: VertexOut;
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
-    o.smooth_b = fetch(vertex_values, v.vertex);
-    o.flat_b = fetch(element_values, v.element);
+    o.smooth_h = fetch(vertex_values, v.vertex);
+    o.flat_h = fetch(element_values, v.element);
     o.bary = v.bary;
     o.selected = select(0.0, 1.0, v.object == u.selected);
     o.element = f32(v.element);
+    o.uv = v.uv;
+    o.uv_emissive = v.uv_emissive;
+    o.cutoff = v.cutoff;
+    o.reflectance = fetch(surfaces, 2u * v.element);
+    o.emission = fetch(surfaces, 2u * v.element + 1u);
+    o.inverse_mean_base = fetch(inverse_means, 2u * v.element);
+    o.inverse_mean_emissive = fetch(inverse_means, 2u * v.element + 1u);
     return o;
 }
 
@@ -133,11 +167,23 @@ fn hermite(e: u32, bary: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(i: VertexOut) -> @location(0) vec4<f32> {
-    var b = i.flat_b;
+    // Sampled first, in uniform control flow (implicit derivatives).
+    let base = textureSample(base_texture, base_sampler, i.uv);
+    let glow = textureSample(emissive_texture, emissive_sampler, i.uv_emissive).rgb;
+    var h = i.flat_h;
     if u.recon == 1u {
-        b = i.smooth_b;
+        h = i.smooth_h;
     } else if u.recon == 2u {
-        b = hermite(u32(round(i.element)), i.bary);
+        h = hermite(u32(round(i.element)), i.bary);
+    }
+    h = max(h, vec3<f32>(0.0));
+    var b = i.reflectance * h + i.emission;
+    if u.textures == 1u && u.false_colour == 0u {
+        if base.a < i.cutoff {
+            discard;
+        }
+        b = i.reflectance * i.inverse_mean_base * base.rgb * h
+            + i.emission * i.inverse_mean_emissive * glow;
     }
     var c: vec3<f32>;
     if u.false_colour == 1u {

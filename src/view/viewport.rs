@@ -4,6 +4,7 @@
 
 use super::app::App;
 use super::final_gather::{Key, Pass, REST, VIEW_GATHER_ERROR, colour_image};
+use super::gathered::SurfaceTextures;
 use crate::solver::gather::GatherSettings;
 use crate::worker::{Command, Stage};
 use eframe::egui;
@@ -133,6 +134,7 @@ impl App {
             size,
             ev: self.display.ev,
             tonemap: self.display.tonemap,
+            textures: self.display.textures,
             version,
         };
         if s.pass.as_ref().is_some_and(|p| p.key != key) {
@@ -143,9 +145,13 @@ impl App {
             ui.ctx().request_repaint_after(REST);
             return;
         }
-        let pass = s
-            .pass
-            .get_or_insert_with(|| Pass::start(key, gatherer.1.clone(), self.display));
+        let pass = s.pass.get_or_insert_with(|| {
+            let textures = SurfaceTextures {
+                materials: s.materials.clone(),
+                images: s.images.clone(),
+            };
+            Pass::start(key, gatherer.1.clone(), self.display, textures)
+        });
         let (finished, done, level, seconds) = {
             let mut p = pass.picture.lock().unwrap_or_else(|e| e.into_inner());
             if p.changed {

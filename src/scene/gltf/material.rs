@@ -228,6 +228,9 @@ pub(super) fn convert(
         emission,
         double_sided: double_sided.unwrap_or(false),
         transmittance: info.untextured_transmittance(),
+        base_texture: None,
+        emissive_texture: None,
+        alpha_cutoff: None,
     };
     (material, info)
 }

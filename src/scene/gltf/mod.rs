@@ -232,6 +232,7 @@ fn load_bytes(
         lights: Vec::new(),
         light_defs: light::definitions(&root),
         jobs: Vec::new(),
+        images: Vec::new(),
         positions: HashMap::new(),
         missing_uv_warned: Vec::new(),
         cancel,
@@ -243,6 +244,7 @@ fn load_bytes(
         objects,
         lights,
         buffers,
+        images,
         ..
     } = loader;
     for n in buffers.notes.take() {
@@ -254,6 +256,7 @@ fn load_bytes(
         materials,
         lights,
         environment: None,
+        images,
         warnings: warn.finish(),
     })
 }
@@ -271,6 +274,8 @@ struct Loader<'a> {
     lights: Vec<Light>,
     light_defs: Vec<Result<light::LightDef, String>>,
     jobs: Vec<TexJob>,
+    /// The texture pass's decoded images (for the display).
+    images: Vec<std::sync::Arc<crate::scene::Image>>,
     /// Decoded POSITION accessors (meshes instanced by several nodes are read once).
     positions: HashMap<usize, Rc<Vec<Vec3>>>,
     /// Materials already warned about for a missing TEXCOORD set.
@@ -301,17 +306,18 @@ impl Loader<'_> {
             }
         }
         self.traverse()?;
-        tint::apply_textures(
+        self.images = tint::apply_textures(
             self.root,
             &self.buffers,
             self.dir,
             &self.jobs,
             &self.infos,
-            &self.materials,
+            &mut self.materials,
             &mut self.objects,
             &mut self.warn,
             self.cancel,
-        )
+        )?;
+        Ok(())
     }
 
     /// The root nodes to draw: the `scene`'s, else scene 0's, else every parentless node.

@@ -8,20 +8,11 @@
 
 use super::json;
 use super::source::{Buffers, Target, resolve_uri, view};
+use crate::scene::textures::{linear_to_srgb, srgb_to_linear};
+use crate::scene::{Image, ImageLevel, Wrap};
 use glam::Vec2;
 use serde_json::Value;
 use std::path::Path;
-
-/// Texture coordinate wrap mode (glTF sampler `wrapS` / `wrapT`, §5.26).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) enum Wrap {
-    /// 10497, the default.
-    Repeat,
-    /// 33648.
-    Mirror,
-    /// 33071.
-    Clamp,
-}
 
 /// A resolved `textureInfo`: which image, which UV set, how to wrap and transform.
 #[derive(Clone, Debug)]
@@ -120,13 +111,10 @@ pub(super) fn image_bytes(
     Ok(view(root, buffers, v)?.bytes.to_vec())
 }
 
-/// sRGB-encoded value in [0, 1] to linear (IEC 61966-2-1 EOTF).
-pub(super) fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
+
+/// Linear value in [0, 1] to an sRGB-encoded byte.
+fn encode_srgb(c: f32) -> u8 {
+    (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8
 }
 
 /// One mip level: `channels` floats per texel, row-major.
@@ -158,6 +146,27 @@ impl Level {
             h,
             channels: ch,
             px,
+        }
+    }
+
+    /// The level as sRGB-encoded RGBA8 (4 channels; IEC 61966-2-1 OETF, rounded).
+    fn to_srgb8(&self) -> ImageLevel {
+        let rgba = self
+            .px
+            .chunks_exact(4)
+            .flat_map(|t| {
+                [
+                    encode_srgb(t[0]),
+                    encode_srgb(t[1]),
+                    encode_srgb(t[2]),
+                    (t[3].clamp(0.0, 1.0) * 255.0).round() as u8,
+                ]
+            })
+            .collect();
+        ImageLevel {
+            width: self.w as u32,
+            height: self.h as u32,
+            rgba,
         }
     }
 
@@ -222,8 +231,9 @@ impl Pyramid {
         Pyramid { levels }
     }
 
-    /// Decodes an encoded PNG or JPEG into linear RGBA (sRGB decoded for RGB).
-    pub fn decode(bytes: &[u8]) -> Result<Pyramid, String> {
+    /// Decodes an encoded PNG or JPEG into linear RGBA (sRGB decoded for RGB), and the
+    /// image as it was encoded (8 bits per channel) for the display, named `name`.
+    pub fn decode(bytes: &[u8], name: String) -> Result<(Pyramid, Image), String> {
         let decoded = std::panic::catch_unwind(|| -> Result<image::DynamicImage, String> {
             let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
                 .with_guessed_format()
@@ -240,11 +250,12 @@ impl Pyramid {
             return Err("the image is empty".into());
         }
         let color = decoded.color();
+        let rgba8 = decoded.to_rgba8();
         let px: Vec<f32> = if color.bytes_per_pixel() == color.channel_count() {
             // 8 bits per channel: decode sRGB through a 256-entry table.
             let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
             let mut px = Vec::with_capacity(w * h * 4);
-            for t in decoded.to_rgba8().pixels() {
+            for t in rgba8.pixels() {
                 let [r, g, b, a] = t.0;
                 px.extend([
                     lut[r as usize],
@@ -263,12 +274,29 @@ impl Pyramid {
             }
             px
         };
-        Ok(Pyramid::build(Level {
+        let pyramid = Pyramid::build(Level {
             w,
             h,
             channels: 4,
             px,
-        }))
+        });
+        let mut levels = vec![ImageLevel {
+            width: w as u32,
+            height: h as u32,
+            rgba: rgba8.into_raw(),
+        }];
+        levels.extend(pyramid.levels[1..].iter().map(Level::to_srgb8));
+        let mime = match image::guess_format(bytes) {
+            Ok(image::ImageFormat::Jpeg) => "image/jpeg",
+            _ => "image/png",
+        };
+        let image = Image {
+            name,
+            levels,
+            encoded: bytes.to_vec(),
+            mime,
+        };
+        Ok((pyramid, image))
     }
 
     /// Coverage pyramid: level 0 is 1 where alpha ≥ `threshold`, else 0; higher levels hold
@@ -413,6 +441,13 @@ mod tests {
         let uv = [Vec2::ZERO, Vec2::new(16.0, 0.0), Vec2::new(0.0, 16.0)];
         let m = p.triangle_mean(uv, [Wrap::Repeat; 2]);
         assert!((m[0] - 0.5).abs() < 0.02, "{m:?}");
+    }
+
+    #[test]
+    fn srgb_bytes_round_trip() {
+        for b in 0..=255u8 {
+            assert_eq!(encode_srgb(srgb_to_linear(b as f32 / 255.0)), b);
+        }
     }
 
     #[test]

@@ -1,5 +1,7 @@
 //! The texture pass: per-triangle reflectance / emission factors and alpha transmittance
-//! from the textures, computed after the geometry is built.
+//! from the textures, computed after the geometry is built; and for the display, the
+//! decoded images (8 bits per channel, as encoded), each material's texture references
+//! and each textured triangle's coordinates and means.
 //!
 //! Each used image is decoded once, reduced to the per-triangle means of every primitive
 //! that uses it, and dropped, so at most one decoded image per worker thread is in memory.
@@ -10,7 +12,7 @@ use super::material::{AlphaMode, MatInfo};
 use super::source::Buffers;
 use super::texture::{self, Pyramid};
 use super::{CANCELLED, Warnings};
-use crate::scene::{Material, Object};
+use crate::scene::{Image, Material, Object, Slot, TextureRef, TexturedTriangle};
 use glam::{Vec2, Vec3};
 use serde_json::Value;
 use std::path::Path;
@@ -29,29 +31,26 @@ pub(super) struct TexJob {
     pub uv_sets: Vec<(u32, Vec<[Vec2; 3]>)>,
 }
 
-/// Which texture of a material a job samples.
-#[derive(Clone, Copy, PartialEq)]
-enum Slot {
-    Base,
-    Emissive,
-}
-
 /// The per-triangle outcome of one (job, slot).
 struct Outcome {
     job: usize,
     slot: Slot,
     /// Mean linear RGB of the texture over each triangle.
     mean: Vec<Vec3>,
+    /// Each triangle's texture coordinates (transformed).
+    uv: Vec<[Vec2; 3]>,
     /// Transmittance per triangle, for MASK and BLEND base-colour textures.
     transmittance: Option<Vec<f32>>,
 }
 
-/// One image's outcomes (or why it could not be used), tagged with its index.
-type ImageResult = (usize, Result<Vec<Outcome>, String>);
+/// One image's outcomes and its decoded pixels (or why it could not be used), tagged with
+/// its index.
+type ImageResult = (usize, Result<(Vec<Outcome>, Image), String>);
 
-/// Decodes every image used by `jobs` and writes the per-triangle factors into `objects`.
-/// An image that cannot be read or decoded is a warning (those surfaces stay untextured);
-/// a buffer that cannot be loaded (image in a buffer view) is an error.
+/// Decodes every image used by `jobs`, writes the per-triangle factors into `objects` and
+/// the texture references into `materials`, and returns the decoded images the references
+/// index. An image that cannot be read or decoded is a warning (those surfaces stay
+/// untextured); a buffer that cannot be loaded (image in a buffer view) is an error.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn apply_textures(
     root: &Value,
@@ -59,11 +58,11 @@ pub(super) fn apply_textures(
     dir: &Path,
     jobs: &[TexJob],
     infos: &[MatInfo],
-    materials: &[Material],
+    materials: &mut [Material],
     objects: &mut [Object],
     warn: &mut Warnings,
     cancel: &AtomicBool,
-) -> Result<(), String> {
+) -> Result<Vec<std::sync::Arc<Image>>, String> {
     let mut by_image: std::collections::BTreeMap<usize, Vec<(usize, Slot)>> = Default::default();
     for (j, job) in jobs.iter().enumerate() {
         let info = &infos[job.material];
@@ -106,9 +105,10 @@ pub(super) fn apply_textures(
                 break;
             }
             let outcome = match bytes {
-                Ok(b) => Pyramid::decode(b).map(|p| {
+                Ok(b) => Pyramid::decode(b, image_name(root, *image)).map(|(p, decoded)| {
                     let mut coverage = Vec::new();
-                    uses.iter()
+                    let outcomes = uses
+                        .iter()
                         .filter_map(|&(j, slot)| {
                             compute(
                                 &jobs[j],
@@ -119,7 +119,8 @@ pub(super) fn apply_textures(
                                 &mut coverage,
                             )
                         })
-                        .collect()
+                        .collect();
+                    (outcomes, decoded)
                 }),
                 Err(e) => Err(e.clone()),
             };
@@ -142,25 +143,54 @@ pub(super) fn apply_textures(
     }
     let mut results = results.into_inner().unwrap_or_default();
     results.sort_by_key(|(image, _)| *image);
+    let mut images = Vec::new();
     for (image, outcome) in results {
         match outcome {
-            Ok(list) => {
+            Ok((list, decoded)) => {
+                let index = images.len() as u32;
+                images.push(std::sync::Arc::new(decoded));
+                for (m, info) in infos.iter().enumerate() {
+                    let material = &mut materials[m];
+                    if let Some(t) = info.base_tex.as_ref().filter(|t| t.image == image) {
+                        material.base_texture = Some(TextureRef {
+                            image: index,
+                            wrap: t.wrap,
+                        });
+                        material.alpha_cutoff = match info.alpha_mode {
+                            AlphaMode::Mask(cutoff) if info.base_alpha > 0.0 => {
+                                Some(cutoff / info.base_alpha)
+                            }
+                            AlphaMode::Mask(_) => Some(f32::MAX),
+                            _ => None,
+                        };
+                    }
+                    if let Some(t) = info.emissive_tex.as_ref().filter(|t| t.image == image) {
+                        material.emissive_texture = Some(TextureRef {
+                            image: index,
+                            wrap: t.wrap,
+                        });
+                    }
+                }
                 for o in list {
                     merge(o, jobs, materials, objects);
                 }
             }
-            Err(e) => {
-                let uri = root["images"][image]["uri"]
-                    .as_str()
-                    .filter(|u| !u.starts_with("data:"));
-                let what = uri.map(|u| format!(" ('{u}')")).unwrap_or_default();
-                warn.line(format!(
-                    "images[{image}]{what}: {e}; surfaces using it are untextured"
-                ));
-            }
+            Err(e) => warn.line(format!(
+                "{}: {e}; surfaces using it are untextured",
+                image_name(root, image)
+            )),
         }
     }
-    Ok(())
+    Ok(images)
+}
+
+/// `images[i]`, with its URI unless it is a `data:` URI.
+fn image_name(root: &Value, image: usize) -> String {
+    let uri = root["images"][image]["uri"]
+        .as_str()
+        .filter(|u| !u.starts_with("data:"));
+    let what = uri.map(|u| format!(" ('{u}')")).unwrap_or_default();
+    format!("images[{image}]{what}")
 }
 
 /// Per-triangle means of one texture slot of one job.
@@ -199,11 +229,13 @@ fn compute(
     };
     let blend = slot == Slot::Base && info.alpha_mode == AlphaMode::Blend;
     let mut mean = Vec::with_capacity(uvs.len());
+    let mut uv_out = Vec::with_capacity(uvs.len());
     let mut transmittance = (mask.is_some() || blend).then(|| Vec::with_capacity(uvs.len()));
     for uv in uvs {
         let uv = uv.map(|p| texture::transform_uv(tref, p));
         let m = pyramid.triangle_mean(uv, tref.wrap);
         mean.push(Vec3::new(m[0], m[1], m[2]));
+        uv_out.push(uv);
         if let Some(t) = &mut transmittance {
             let covered = match mask {
                 Some(mask) => mask.triangle_mean(uv, tref.wrap)[0],
@@ -216,6 +248,7 @@ fn compute(
         job: j,
         slot,
         mean,
+        uv: uv_out,
         transmittance,
     })
 }
@@ -232,6 +265,12 @@ fn merge(o: Outcome, jobs: &[TexJob], materials: &[Material], objects: &mut [Obj
     tint.resize(count, Vec3::ONE);
     for (k, m) in o.mean.iter().enumerate() {
         tint[job.first + k] *= *m;
+    }
+    object.textured.resize(count, TexturedTriangle::NONE);
+    for (k, (m, uv)) in o.mean.iter().zip(&o.uv).enumerate() {
+        let t = &mut object.textured[job.first + k];
+        t.mean[o.slot as usize] = *m;
+        t.uv[o.slot as usize] = *uv;
     }
     if let Some(t) = o.transmittance {
         if object.transmittance.len() != count {
