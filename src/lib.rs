@@ -15,6 +15,7 @@ pub mod analytic;
 pub mod cancel;
 pub mod cli;
 pub mod export;
+pub mod exposure;
 pub mod files;
 pub mod geometry;
 pub mod light;

@@ -64,9 +64,14 @@ pub enum Command {
     },
     /// Whether snapshots include Cohen et al.'s ambient term (progressive only).
     SetAmbient(bool),
-    /// Write the current solution as a baked .glb (radiance per vertex, edited materials).
+    /// Write the current solution as a baked .glb (the light per vertex under the edited
+    /// materials and their textures; `export`).
     Export {
         path: PathBuf,
+        /// The exposure to bake the colours at, in stops, and the tone map (the viewer's);
+        /// `None`: the auto exposure of the solution and the default tone map.
+        ev: Option<f32>,
+        tonemap: Option<crate::exposure::ToneMap>,
     },
     /// Prepare the current solution for the final gather at points (answered by
     /// `Event::Gatherer`).
@@ -418,9 +423,9 @@ fn run(
                         });
                     }
                 }
-                Command::Export { path } => {
+                Command::Export { path, ev, tonemap } => {
                     if let Some(j) = &mut job {
-                        let result = export(j, &path);
+                        let result = export(j, &path, ev, tonemap);
                         send(Event::Exported { job: j.id, result });
                     }
                 }
@@ -624,7 +629,12 @@ fn move_object(
     }
 }
 
-fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, ExportError> {
+fn export(
+    j: &Job,
+    path: &std::path::Path,
+    ev: Option<f32>,
+    tonemap: Option<crate::exposure::ToneMap>,
+) -> Result<PathBuf, ExportError> {
     if !j.source.0.starts_with("builtin:") {
         let opened = std::path::Path::new(&j.source.0);
         let same = match (opened.canonicalize(), path.canonicalize()) {
@@ -637,8 +647,15 @@ fn export(j: &Job, path: &std::path::Path) -> Result<PathBuf, ExportError> {
     }
     let radiosity = j.solver.radiosity();
     let mesh = j.solver.mesh();
-    let vertex = mesh.display.vertex_values(&mesh.elements, &radiosity);
-    let bytes = crate::export::baked_glb(&j.scene, mesh, &vertex);
+    let ev = ev.or_else(|| crate::exposure::auto_exposure(mesh, &radiosity).map(|a| a.0));
+    let bake = crate::export::Bake {
+        radiosity: &radiosity,
+        reflectance: j.solver.reflectance(),
+        emission: j.solver.emission(),
+        exposure: 2f32.powf(ev.unwrap_or(0.0)),
+        tonemap: tonemap.unwrap_or_default(),
+    };
+    let bytes = crate::export::baked_glb(&j.scene, mesh, &bake);
     crate::files::write_atomic(path, &bytes).map_err(|e| ExportError::Write(Arc::new(e)))?;
     Ok(path.to_path_buf())
 }

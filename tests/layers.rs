@@ -18,6 +18,7 @@ const LAYERS: &[&str] = &[
     "mesh",
     "solver",
     "reference",
+    "exposure",
     "export",
     "pipeline",
     "analytic",

@@ -193,6 +193,8 @@ fn pause_stops_snapshots_and_new_settings_restart_the_solve() {
     let dir = scratch_dir("worker-pause");
     worker.send(Command::Export {
         path: dir.join("fence.glb"),
+        ev: None,
+        tonemap: None,
     });
     until(&worker, |e| matches!(e, Event::Exported { .. }));
     // From here on, a snapshot comes only when asked for: turning the ambient term on
@@ -365,7 +367,11 @@ fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
         matches!(e, Event::Converged { .. } | Event::Failed { .. })
     });
     let out = dir.join("baked.glb");
-    worker.send(Command::Export { path: out.clone() });
+    worker.send(Command::Export {
+        path: out.clone(),
+        ev: None,
+        tonemap: None,
+    });
     let events = until(&worker, |e| matches!(e, Event::Exported { .. }));
     match events.last() {
         Some(Event::Exported { result: Ok(p), .. }) => assert_eq!(p, &out),
@@ -382,6 +388,8 @@ fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
     // Exporting over the opened scene is refused and leaves it as it was.
     worker.send(Command::Export {
         path: opened.clone(),
+        ev: None,
+        tonemap: None,
     });
     let events = until(&worker, |e| matches!(e, Event::Exported { .. }));
     match events.last() {

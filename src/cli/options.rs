@@ -221,8 +221,8 @@ pub struct RenderOptions {
     /// Exposure in stops (default: auto exposure, as the viewer).
     #[arg(long, allow_hyphen_values = true)]
     pub ev: Option<f32>,
-    /// clamp, reinhard or aces.
-    #[arg(long, default_value = "reinhard")]
+    /// clamp, reinhard, aces or agx.
+    #[arg(long, default_value = "agx")]
     pub tonemap: crate::view::render::ToneMap,
     /// False colour of log10 radiosity.
     #[arg(long)]

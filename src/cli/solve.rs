@@ -3,7 +3,7 @@
 
 use super::options::SolveOptions;
 use super::{load_scene, prepare, run_with_progress};
-use crate::export::baked_glb;
+use crate::export::{Bake, baked_glb};
 use crate::files::write_atomic;
 use crate::solver::{Stats, StepOutcome};
 use anyhow::Result;
@@ -66,10 +66,16 @@ pub fn solve(
     if let Some(path) = out {
         // The solver's mesh: adaptive refinement may have replaced the prepared one.
         let mesh = solver.mesh();
-        let values = mesh
-            .display
-            .vertex_values(&mesh.elements, &solver.radiosity());
-        write_atomic(path, &baked_glb(&s, mesh, &values))?;
+        let radiosity = solver.radiosity();
+        let ev = crate::exposure::auto_exposure(mesh, &radiosity).map_or(0.0, |a| a.0);
+        let bake = Bake {
+            radiosity: &radiosity,
+            reflectance: solver.reflectance(),
+            emission: solver.emission(),
+            exposure: 2f32.powf(ev),
+            tonemap: Default::default(),
+        };
+        write_atomic(path, &baked_glb(&s, mesh, &bake))?;
     }
     Ok(())
 }

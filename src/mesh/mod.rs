@@ -21,6 +21,7 @@
 
 mod adaptive;
 mod build;
+mod conforming;
 mod contact;
 mod display;
 mod hard_shadows;
@@ -31,6 +32,7 @@ mod texture;
 mod validate;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
+pub use conforming::{Corner, Midpoints};
 pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
 };

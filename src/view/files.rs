@@ -108,7 +108,11 @@ impl App {
     fn path_chosen(&mut self, action: PathAction, path: PathBuf) {
         match action {
             PathAction::Open => self.open(path.to_string_lossy().into_owned()),
-            PathAction::Export => self.worker.send(Command::Export { path }),
+            PathAction::Export => self.worker.send(Command::Export {
+                path,
+                ev: Some(self.display.ev),
+                tonemap: Some(self.display.tonemap),
+            }),
             PathAction::Screenshot => self.request_screenshot(path),
         }
     }

@@ -37,14 +37,8 @@ use camera::Camera;
 use glam::Vec3;
 use std::path::Path;
 
-/// Percentile `q` in [0, 1] of `v` (sorted in place; 0 when empty).
-pub(crate) fn percentile(v: &mut [f32], q: f32) -> f32 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[((v.len() - 1) as f32 * q).round() as usize]
-}
+pub use crate::exposure::auto_exposure;
+pub(crate) use crate::exposure::percentile;
 
 /// Encodes `image` as PNG and writes it atomically (temporary file, then rename).
 pub fn write_png(path: &Path, image: &image::RgbaImage) -> Result<()> {
@@ -121,30 +115,4 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
         return cam;
     }
     Camera::framing(c, r, 0.6, 0.6)
-}
-
-/// Auto exposure from per-element radiosity: the EV that maps the 95th percentile of the
-/// non-emitting elements' radiance to 0.8 before tone mapping, and a false-colour range
-/// (log10 W/m²) from three decades below that percentile to the brightest element.
-pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32))> {
-    let step = (radiosity.len() / 20_000).max(1);
-    let mut lit: Vec<f32> = Vec::new();
-    let mut top = 0.0f32;
-    for (i, b) in radiosity.iter().enumerate().step_by(step) {
-        let l = b.dot(Vec3::new(0.2126, 0.7152, 0.0722));
-        if !l.is_finite() || l <= 0.0 {
-            continue;
-        }
-        top = top.max(l);
-        let patch = mesh.elements.get(i)?.patch as usize;
-        if mesh.patches[patch].emission.max_element() <= 0.0 {
-            lit.push(l);
-        }
-    }
-    if lit.is_empty() {
-        return None;
-    }
-    let p95 = percentile(&mut lit, 0.95);
-    let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
-    Some((ev, (p95.log10() - 3.0, top.max(p95).log10())))
 }

@@ -19,61 +19,16 @@ use anyhow::{Context, Result, anyhow};
 use bytemuck::{Pod, Zeroable};
 use eframe::egui_wgpu::wgpu;
 use glam::Vec3;
-use std::collections::HashMap;
 
 /// Width of the value textures (within the 2048 every adapter supports).
 const VALUE_WIDTH: u32 = 2048;
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// Tone-mapping operators.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum ToneMap {
-    /// Linear, clipped at 1.
-    Clamp,
-    /// L / (1 + luminance).
-    #[default]
-    Reinhard,
-    /// Narkowicz's fit of the ACES filmic curve.
-    Aces,
-}
+pub use crate::exposure::ToneMap;
 
 /// The linear colour the 3D view is cleared to (behind the scene).
 pub const CLEAR_COLOUR: Vec3 = Vec3::new(0.02, 0.02, 0.025);
-
-impl ToneMap {
-    pub const ALL: [ToneMap; 3] = [ToneMap::Clamp, ToneMap::Reinhard, ToneMap::Aces];
-
-    /// The operator on exposed linear radiance `l`, as the shader applies it
-    /// (`tonemap` in `shader.wgsl`).
-    pub fn apply(self, l: Vec3) -> Vec3 {
-        match self {
-            ToneMap::Clamp => l.clamp(Vec3::ZERO, Vec3::ONE),
-            ToneMap::Reinhard => l / (1.0 + l.dot(Vec3::new(0.2126, 0.7152, 0.0722))),
-            ToneMap::Aces => {
-                let (a, b, c, d, e) = (2.51, 0.03, 2.43, 0.59, 0.14);
-                ((l * (l * a + b)) / (l * (l * c + d) + e)).clamp(Vec3::ZERO, Vec3::ONE)
-            }
-        }
-    }
-    pub fn name(self) -> &'static str {
-        match self {
-            ToneMap::Clamp => "clamp",
-            ToneMap::Reinhard => "reinhard",
-            ToneMap::Aces => "aces",
-        }
-    }
-}
-
-impl std::str::FromStr for ToneMap {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        ToneMap::ALL
-            .into_iter()
-            .find(|t| t.name() == s)
-            .ok_or_else(|| format!("unknown tone map '{s}' (expected clamp, reinhard or aces)"))
-    }
-}
 
 /// How the radiosity is shown.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -535,6 +490,7 @@ impl Renderer {
                 ToneMap::Clamp => 0,
                 ToneMap::Reinhard => 1,
                 ToneMap::Aces => 2,
+                ToneMap::Agx => 3,
             },
             false_colour: display.false_colour as u32,
             wire: display.wireframe as u32,
@@ -794,28 +750,18 @@ fn inverse_texture_means(mesh: &Mesh) -> Vec<Vec3> {
         .collect()
 }
 
-/// The element triangles to draw, conforming at T-vertices: an element with a finer
-/// neighbour's vertex at the midpoint of one of its edges is drawn as two to four
-/// triangles through that vertex, so the rasteriser sees no T-junction (which leaves
-/// pixel cracks showing the background). Values are unchanged: a T-vertex carries the
-/// coarse edge's value, and every vertex carries its barycentric coordinates within the
-/// element for the wireframe and Hermite shading, and its texture coordinates.
-///
-/// The vertices come grouped by the textures of their material (`materials`), with each
-/// group's range: one draw per group.
+/// The element triangles to draw (conforming at T-vertices, `Mesh::conforming_triangles`),
+/// each corner with its texture coordinates, grouped by the textures of their material
+/// (`materials`), with each group's range: one draw per group.
 fn triangles(
     mesh: &Mesh,
     materials: &[Material],
 ) -> (Vec<Vertex>, Vec<(TextureKey, std::ops::Range<u32>)>) {
-    let midpoints: HashMap<(u32, u32), u32> = mesh
-        .display
-        .hanging
-        .iter()
-        .map(|&[v, a, b]| (edge_key(a, b), v))
-        .collect();
+    let midpoints = mesh.midpoints();
     let mut groups: Vec<(TextureKey, Vec<Vertex>)> = Vec::new();
     for (i, e) in mesh.elements.iter().enumerate() {
-        let m = materials.get(mesh.patches[e.patch as usize].material as usize);
+        let patch = &mesh.patches[e.patch as usize];
+        let m = materials.get(patch.material as usize);
         let key = m.map_or((None, None), |m| (m.base_texture, m.emissive_texture));
         let group = match groups.iter().position(|(k, _)| *k == key) {
             Some(g) => g,
@@ -825,7 +771,25 @@ fn triangles(
             }
         };
         let cutoff = m.and_then(|m| m.alpha_cutoff).unwrap_or(0.0);
-        element_triangles(mesh, &midpoints, i, cutoff, &mut groups[group].1);
+        let uv = |p: Vec3, slot: Slot| {
+            mesh.texture_uv(i as u32, p, slot)
+                .map_or([0.0; 2], |uv| uv.to_array())
+        };
+        let out = &mut groups[group].1;
+        mesh.conforming_triangles(i as u32, &midpoints, |corners| {
+            for c in corners {
+                out.push(Vertex {
+                    position: c.position.to_array(),
+                    element: i as u32,
+                    vertex: c.vertex,
+                    object: patch.object,
+                    bary: c.bary,
+                    uv: uv(c.position, Slot::Base),
+                    uv_emissive: uv(c.position, Slot::Emissive),
+                    cutoff,
+                });
+            }
+        });
     }
     let mut out = Vec::with_capacity(groups.iter().map(|(_, v)| v.len()).sum());
     let mut ranges = Vec::with_capacity(groups.len());
@@ -835,101 +799,4 @@ fn triangles(
         ranges.push((key, start..out.len() as u32));
     }
     (out, ranges)
-}
-
-/// An undirected edge between two display vertices.
-fn edge_key(a: u32, b: u32) -> (u32, u32) {
-    (a.min(b), a.max(b))
-}
-
-/// Element `i`'s triangles (see [`triangles`]), appended to `out`; `midpoints` maps an
-/// edge to the hanging vertex on it.
-fn element_triangles(
-    mesh: &Mesh,
-    midpoints: &HashMap<(u32, u32), u32>,
-    i: usize,
-    cutoff: f32,
-    out: &mut Vec<Vertex>,
-) {
-    let key = edge_key;
-    {
-        let e = &mesh.elements[i];
-        let patch = &mesh.patches[e.patch as usize];
-        // Hidden under a face pressed against it: drawing it would only z-fight.
-        if patch.covered {
-            return;
-        }
-        let texture = mesh.textures.get(e.patch as usize);
-        let uv = |p: Vec3, slot: Slot| {
-            texture.map_or([0.0; 2], |t| {
-                t.uv_at(slot, crate::mesh::barycentric(&patch.verts, p))
-                    .to_array()
-            })
-        };
-        let object = patch.object;
-        let c = e.corners;
-        let corner = |k: usize| {
-            let mut b = [0.0f32; 3];
-            b[k] = 1.0;
-            (e.verts[k], c[k], b)
-        };
-        // The hanging vertex on edge k (corners k, k+1), if any.
-        let mid: [Option<(Vec3, u32, [f32; 3])>; 3] = std::array::from_fn(|k| {
-            let (a, b) = (c[k], c[(k + 1) % 3]);
-            midpoints.get(&key(a, b)).map(|&v| {
-                let mut bary = [0.0f32; 3];
-                bary[k] = 0.5;
-                bary[(k + 1) % 3] = 0.5;
-                ((e.verts[k] + e.verts[(k + 1) % 3]) * 0.5, v, bary)
-            })
-        });
-        let mut tri = |p: [(Vec3, u32, [f32; 3]); 3]| {
-            for (position, vertex, bary) in p {
-                out.push(Vertex {
-                    position: position.to_array(),
-                    element: i as u32,
-                    vertex,
-                    object,
-                    bary,
-                    uv: uv(position, Slot::Base),
-                    uv_emissive: uv(position, Slot::Emissive),
-                    cutoff,
-                });
-            }
-        };
-        match mid {
-            [None, None, None] => tri([corner(0), corner(1), corner(2)]),
-            [Some(m01), Some(m12), Some(m20)] => {
-                tri([corner(0), m01, m20]);
-                tri([m01, corner(1), m12]);
-                tri([m20, m12, corner(2)]);
-                tri([m01, m12, m20]);
-            }
-            _ => {
-                // One or two midpoints: rotate so that edge k = 0 has one, then split.
-                let k = (0..3).find(|&k| mid[k].is_some()).unwrap_or(0);
-                let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
-                let m = mid[k].unwrap_or(corner(k));
-                match (mid[k1], mid[k2]) {
-                    (None, None) => {
-                        tri([corner(k), m, corner(k2)]);
-                        tri([m, corner(k1), corner(k2)]);
-                    }
-                    (Some(n), None) => {
-                        // Midpoints on edges (k, k1) and (k1, k2).
-                        tri([m, corner(k1), n]);
-                        tri([corner(k), m, n]);
-                        tri([corner(k), n, corner(k2)]);
-                    }
-                    (None, Some(n)) => {
-                        // Midpoints on edges (k, k1) and (k2, k).
-                        tri([corner(k), m, n]);
-                        tri([m, corner(k1), corner(k2)]);
-                        tri([n, m, corner(k2)]);
-                    }
-                    (Some(_), Some(_)) => unreachable!("all three are handled above"),
-                }
-            }
-        }
-    }
 }

@@ -12,7 +12,7 @@ struct Uniforms {
     exposure: f32,
     // 0 flat, 1 Gouraud, 2 Hermite (cubic Bézier triangles).
     recon: u32,
-    // 0 clamp, 1 Reinhard, 2 ACES (Narkowicz fit).
+    // 0 clamp, 1 Reinhard, 2 ACES (Narkowicz fit), 3 AgX.
     tonemap: u32,
     // 1: false colour of log10 luminance of B over [log_lo, log_hi].
     false_colour: u32,
@@ -117,7 +117,34 @@ fn tonemap(l: vec3<f32>) -> vec3<f32> {
         let e = 0.14;
         return clamp((l * (a * l + b)) / (l * (c * l + d) + e), vec3<f32>(0.0), vec3<f32>(1.0));
     }
+    if u.tonemap == 3u {
+        return agx(l);
+    }
     return clamp(l, vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+// AgX (Troy Sobotka; the minimal fit of Blender 4's curve): `ToneMap::Agx` in
+// src/exposure.rs, with the same constants.
+fn agx(l: vec3<f32>) -> vec3<f32> {
+    let inset = mat3x3<f32>(
+        vec3<f32>(0.842479062, 0.0423282422, 0.0423756549),
+        vec3<f32>(0.0784336, 0.878468636, 0.0784336),
+        vec3<f32>(0.0792237451, 0.0791661275, 0.879142974),
+    );
+    let outset = mat3x3<f32>(
+        vec3<f32>(1.19687901, -0.0528968518, -0.0529716355),
+        vec3<f32>(-0.0980208811, 1.15190313, -0.0980434501),
+        vec3<f32>(-0.0990297441, -0.0989611768, 1.15107367),
+    );
+    let min_ev = -12.4739311;
+    let max_ev = 4.02606900;
+    var v = inset * max(l, vec3<f32>(0.0));
+    v = (clamp(log2(max(v, vec3<f32>(1e-10))), vec3<f32>(min_ev), vec3<f32>(max_ev)) - min_ev) / (max_ev - min_ev);
+    let x2 = v * v;
+    let x4 = x2 * x2;
+    v = 15.5 * x4 * x2 - 40.14 * x4 * v + 31.96 * x4 - 6.868 * x2 * v + 0.4298 * x2 + 0.1191 * v - 0.00232;
+    v = outset * v;
+    return clamp(pow(max(v, vec3<f32>(0.0)), vec3<f32>(2.2)), vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
 // Turbo colour map (Mikhailov 2019), polynomial approximation; sRGB-encoded output.

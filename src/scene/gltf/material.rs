@@ -35,6 +35,9 @@ pub(super) struct MatInfo {
     pub base_alpha: f32,
     /// `KHR_materials_transmission.transmissionFactor` (0 when absent).
     pub transmission: f32,
+    /// Written by our baked export (`extras.radiosity`): the primitives' `COLOR_0` is
+    /// baked light, not a vertex colour.
+    pub baked: bool,
 }
 
 impl MatInfo {
@@ -63,6 +66,7 @@ pub(super) fn default_material() -> (Material, MatInfo) {
         alpha_mode: AlphaMode::Opaque,
         base_alpha: 1.0,
         transmission: 0.0,
+        baked: false,
     };
     (
         Material::diffuse("default", Vec3::splat(MAX_REFLECTANCE)),
@@ -212,12 +216,30 @@ pub(super) fn convert(
         None // an emissive texture times a zero factor is no emission at all
     };
 
+    // A file baked by our export carries the scene's physical values (its visible
+    // material is unlit, emitters white) in `extras.radiosity`.
+    let baked = def.get("extras").and_then(|e| e.get("radiosity"));
+    let physical = |key: &str| {
+        baked
+            .and_then(|b| json::numbers::<3>(b, key).ok().flatten())
+            .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+    };
+    let (reflectance, emission, double_sided) =
+        match (physical("reflectance"), physical("emission")) {
+            (Some(r), Some(e)) => (
+                r.clamp(Vec3::ZERO, Vec3::splat(MAX_REFLECTANCE)),
+                e.max(Vec3::ZERO),
+                baked.and_then(|b| json::boolean(b, "doubleSided").ok().flatten()),
+            ),
+            _ => (reflectance, emission, double_sided),
+        };
     let info = MatInfo {
         base_tex,
         emissive_tex,
         alpha_mode,
         base_alpha,
         transmission,
+        baked: baked.is_some(),
     };
     for p in problems {
         warn.line(format!("{at}: {p}"));

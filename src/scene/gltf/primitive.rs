@@ -36,6 +36,15 @@ impl Loader<'_> {
         weights: &[f64],
     ) -> Result<(), String> {
         let root = self.root;
+        // The back side of a double-sided surface in our baked export: the material's
+        // `doubleSided` makes it again from the front side.
+        let side = prim
+            .get("extras")
+            .and_then(|e| e.get("radiosity"))
+            .and_then(|r| r.get("side"));
+        if side.and_then(Value::as_str) == Some("back") {
+            return Ok(());
+        }
         let mode = json::uint(prim, "mode")?.unwrap_or(4);
         match mode {
             4..=6 => {}
@@ -136,7 +145,8 @@ impl Loader<'_> {
 
         // COLOR_0 multiplies the base colour (§3.7.2.1); its mean over a linear triangle is
         // the mean of its corners.
-        if let Some(ci) = json::index(attrs, "COLOR_0")? {
+        let baked = self.infos[material as usize].baked;
+        if let Some(ci) = json::index(attrs, "COLOR_0")?.filter(|_| !baked) {
             match accessor::read(root, &self.buffers, ci, &["VEC3", "VEC4"]) {
                 Ok(colors) if colors.count() >= n => {
                     let tint = &mut object.reflectance_tint;

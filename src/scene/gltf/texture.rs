@@ -111,7 +111,6 @@ pub(super) fn image_bytes(
     Ok(view(root, buffers, v)?.bytes.to_vec())
 }
 
-
 /// Linear value in [0, 1] to an sRGB-encoded byte.
 fn encode_srgb(c: f32) -> u8 {
     (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8
