@@ -1,6 +1,7 @@
 //! The display's exposure: the auto exposure of a solution, shared by the viewer,
 //! `radiosity render` and the baked export (which bakes it into the file's colours).
 
+use crate::accel::Bvh;
 use crate::mesh::Mesh;
 use glam::Vec3;
 
@@ -37,6 +38,39 @@ pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32)
     let p95 = percentile(&mut lit, 0.95);
     let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
     Some((ev, (p95.log10() - 3.0, top.max(p95).log10())))
+}
+
+/// Auto exposure metered on what a camera sees: [`auto_exposure`]'s rule (the 95th
+/// percentile of the lit, non-emitting surfaces' radiance at 0.8) over the elements first
+/// hit by `rays` (origin and unit direction, mesh frame; a grid over the view), as a
+/// camera's meter reads its frame. A scene lit through its roof is then exposed for the
+/// arcade in view, not for the sunny floor behind the camera. The false-colour range is
+/// the scene's (from [`auto_exposure`]); `None` when no ray meets a lit surface.
+pub fn metered_exposure(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    radiosity: &[Vec3],
+    rays: &[(Vec3, Vec3)],
+) -> Option<(f32, (f32, f32))> {
+    let (_, range) = auto_exposure(mesh, radiosity)?;
+    let mut seen: Vec<f32> = rays
+        .iter()
+        .filter_map(|&(origin, dir)| {
+            let hit = bvh.closest_hit(origin, dir, 0.0, f32::INFINITY, u32::MAX)?;
+            let e = mesh.element_at(hit.triangle, origin + dir * hit.t, -dir)?;
+            let patch = &mesh.patches[mesh.elements[e as usize].patch as usize];
+            let l = radiosity
+                .get(e as usize)?
+                .dot(Vec3::new(0.2126, 0.7152, 0.0722));
+            (patch.emission.max_element() <= 0.0 && l.is_finite() && l > 0.0).then_some(l)
+        })
+        .collect();
+    if seen.is_empty() {
+        return None;
+    }
+    let p95 = percentile(&mut seen, 0.95);
+    let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
+    Some((ev, range))
 }
 
 /// Tone-mapping operators, from exposed linear radiance to linear display values in

@@ -82,7 +82,12 @@ pub fn render(
     )?;
     view::write_png(out, &image)?;
     if !quiet {
-        eprintln!("rendered {} with {adapter}", out.display());
+        eprintln!(
+            "rendered {} with {adapter} (EV {:.2}, {} tone map)",
+            out.display(),
+            display.ev,
+            display.tonemap.name()
+        );
     }
     Ok(())
 }
@@ -101,7 +106,8 @@ fn view_of(
         camera.pitch = pitch.clamp(-89.0, 89.0).to_radians();
         camera.distance *= zoom;
     }
-    let auto = view::auto_exposure(mesh, radiosity);
+    let aspect = picture.size.0 as f32 / picture.size.1 as f32;
+    let auto = view::view_exposure(mesh, bvh, radiosity, &camera, aspect);
     let display = Display {
         reconstruction: picture.mode,
         ev: picture.ev.or(auto.map(|a| a.0)).unwrap_or(0.0),

@@ -423,6 +423,7 @@ impl eframe::App for App {
 
         self.handle_events();
         self.upload();
+        self.meter_view();
         self.upload_bezier();
         self.keys(&ctx);
         self.files_dropped(&ctx);

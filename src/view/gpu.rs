@@ -261,14 +261,31 @@ impl App {
         }
     }
 
-    /// Sets the exposure and the false-colour range from the newest snapshot.
+    /// Sets the exposure and the false-colour range from the newest snapshot, metered on
+    /// the current view (`view_exposure`).
     fn expose(&mut self) {
-        let s = &self.session;
-        if let (Some(snap), Some(mesh)) = (&s.snapshot, &s.mesh)
-            && let Some((ev, range)) = super::auto_exposure(mesh, &snap.radiosity)
+        let s = &mut self.session;
+        let aspect = self
+            .viewport_rect
+            .map_or(1.0, |r| r.width() / r.height().max(1.0));
+        if let (Some(snap), Some(mesh), Some(bvh)) = (&s.snapshot, &s.mesh, &s.bvh)
+            && let Some((ev, range)) =
+                super::view_exposure(mesh, bvh, &snap.radiosity, &self.camera, aspect)
         {
             self.display.ev = ev;
             self.display.log_range = range;
+        }
+        s.metered = Some(self.camera);
+    }
+
+    /// With auto exposure on, meters the view again when the camera has moved since it
+    /// last did (about 1,500 rays, a few milliseconds).
+    pub(super) fn meter_view(&mut self) {
+        if self.auto_exposure
+            && self.session.snapshot.is_some()
+            && self.session.metered != Some(self.camera)
+        {
+            self.expose();
         }
     }
 }

@@ -66,6 +66,8 @@ pub(super) struct Session {
     pub(super) solve_started: Option<Instant>,
     pub(super) edits: Edits,
     pub(super) uploads: Uploads,
+    /// The camera the auto exposure was last metered from.
+    pub(super) metered: Option<Camera>,
     /// The final gather of this scene: the newest prepared solution with the snapshot
     /// version it was made from, the version asked for, when and where the camera came to
     /// rest, the pass under way and its texture.
