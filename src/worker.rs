@@ -13,7 +13,7 @@ use crate::accel::Bvh;
 use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
-use crate::scene::{Image, Material, OpenError, Scene};
+use crate::scene::{Image, Material, OpenError, Outside, Scene};
 use crate::solver::gather::{GatherSettings, Gatherer};
 use crate::solver::{PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome};
 use glam::{DMat4, Vec3};
@@ -36,6 +36,8 @@ pub enum Command {
     Load {
         job: u64,
         source: Source,
+        /// `--sky` and `--sun`, when given.
+        outside: Outside,
         mesh: MeshSettings,
         solver: SolverSettings,
         /// Let the worker choose the method by size once the scene is meshed: stochastic
@@ -340,6 +342,7 @@ fn run(
                 Command::Load {
                     job: id,
                     source,
+                    outside,
                     mesh,
                     solver,
                     auto_method,
@@ -347,7 +350,16 @@ fn run(
                     job = None; // free the old scene before loading the next
                     let flag = cancel.lock().unwrap_or_else(|e| e.into_inner()).clone();
                     let result = catch_unwind(AssertUnwindSafe(|| {
-                        load(id, &source, &mesh, solver, auto_method, &flag, &send)
+                        load(
+                            id,
+                            &source,
+                            outside,
+                            &mesh,
+                            solver,
+                            auto_method,
+                            &flag,
+                            &send,
+                        )
                     }));
                     match result {
                         Ok(Ok(Some(j))) => job = Some(j),
@@ -684,6 +696,7 @@ fn loaded_event(id: u64, scene: &Scene, prepared: &Prepared) -> Event {
 fn load(
     id: u64,
     source: &Source,
+    outside: Outside,
     mesh: &MeshSettings,
     mut solver: SolverSettings,
     auto_method: bool,
@@ -694,7 +707,7 @@ fn load(
         job: id,
         stage: Stage::Loading,
     });
-    let scene = match crate::scene::open_cancellable(&source.0, None, None, cancel) {
+    let scene = match crate::scene::open_cancellable(&source.0, outside.sky, outside.sun, cancel) {
         Ok(scene) => scene,
         Err(_) if cancel.load(Ordering::Relaxed) => return Ok(None),
         Err(e) => return Err(JobError::Open(Arc::new(e))),

@@ -26,6 +26,7 @@ fn load(job: u64, source: &str) -> Command {
     Command::Load {
         job,
         source: Source(source.into()),
+        outside: Default::default(),
         mesh: MeshSettings {
             max_elements: Some(300),
             ..Default::default()

@@ -25,6 +25,7 @@ fn load(job: u64, source: &str, solver: SolverSettings) -> Command {
     Command::Load {
         job,
         source: Source(source.into()),
+        outside: Default::default(),
         mesh: mesh(),
         solver,
         auto_method: false,

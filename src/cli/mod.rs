@@ -297,6 +297,10 @@ pub fn run(cli: Cli) -> Result<()> {
             scene: scene.unwrap_or_else(|| "builtin:cornell".into()),
             mesh: options.mesh_settings(),
             solver: viewer_solver_settings(&options),
+            outside: crate::scene::Outside {
+                sky: options.lights.sky,
+                sun: options.lights.sun,
+            },
             screenshot,
             screenshot_after,
             frame_stats,

@@ -169,6 +169,16 @@ pub struct Environment {
     pub sun: Option<(DVec3, Vec3)>,
 }
 
+/// The light from outside given on the command line (`--sky`, `--sun`): it replaces a
+/// scene's default sky (`Scene::ensure_light`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Outside {
+    /// Uniform sky radiance per channel, W/(m²·sr).
+    pub sky: Option<Vec3>,
+    /// Unit direction towards the sun and its irradiance (W/m²).
+    pub sun: Option<(DVec3, Vec3)>,
+}
+
 /// A whole scene.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {

@@ -18,7 +18,7 @@ use super::render::Display;
 use super::session::{Session, Snap};
 use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings};
-use crate::scene::Material;
+use crate::scene::{Material, Outside};
 use crate::solver::{SolverSettings, Stats};
 use crate::worker::{Command, Event, Worker};
 use eframe::egui;
@@ -35,6 +35,8 @@ pub struct Options {
     pub scene: String,
     pub mesh: MeshSettings,
     pub solver: SolverSettings,
+    /// `--sky` and `--sun` for every scene opened.
+    pub outside: Outside,
     /// Save a screenshot of the window to this file after `screenshot_after` seconds of
     /// solving, then exit.
     pub screenshot: Option<PathBuf>,
@@ -63,6 +65,7 @@ impl Default for Options {
                 adaptive: Some(crate::mesh::AdaptiveSettings::default()),
                 ..Default::default()
             },
+            outside: Outside::default(),
             screenshot: None,
             screenshot_after: 3.0,
             frame_stats: None,
@@ -112,6 +115,8 @@ pub struct App {
     /// The settings the next scene (or mesh again) is loaded with.
     pub(super) mesh_settings: MeshSettings,
     pub(super) solver_settings: SolverSettings,
+    /// `--sky` and `--sun`, applied to every scene opened.
+    pub(super) outside: Outside,
     /// The element size field (0: automatic), applied when a scene is meshed.
     pub(super) element_size: f64,
     /// Let the worker choose the method by size (until a method is chosen in the panel).
@@ -156,6 +161,7 @@ impl App {
             element_size: options.mesh.element_size.unwrap_or(0.0),
             mesh_settings: options.mesh.clone(),
             solver_settings: options.solver.clone(),
+            outside: options.outside,
             auto_method: options.auto_method,
             camera: Camera::default(),
             display: Display {

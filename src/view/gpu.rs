@@ -97,14 +97,14 @@ impl Gpu {
             match self.texture {
                 Some(id) => r.update_egui_texture_from_wgpu_texture(
                     &self.state.device,
-                    &target.view,
+                    &target.encoded_view,
                     eframe::wgpu::FilterMode::Linear,
                     id,
                 ),
                 None => {
                     self.texture = Some(r.register_native_texture(
                         &self.state.device,
-                        &target.view,
+                        &target.encoded_view,
                         eframe::wgpu::FilterMode::Linear,
                     ))
                 }

@@ -125,6 +125,11 @@ pub struct GpuMesh {
 pub struct Target {
     pub color: wgpu::Texture,
     pub view: wgpu::TextureView,
+    /// The same texels viewed as plain `Rgba8Unorm`, for egui: it takes a native
+    /// texture's values as sRGB-encoded ("Texture must have the texture format
+    /// Rgba8Unorm", `egui_wgpu::Renderer::register_native_texture`), and sampling the sRGB
+    /// view would hand it linear values, shown too dark.
+    pub encoded_view: wgpu::TextureView,
     depth: wgpu::TextureView,
     pub size: [u32; 2],
 }
@@ -147,7 +152,7 @@ impl Target {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
+            view_formats: &[wgpu::TextureFormat::Rgba8Unorm],
         });
         let depth = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("radiosity view depth"),
@@ -161,6 +166,10 @@ impl Target {
         });
         Target {
             view: color.create_view(&Default::default()),
+            encoded_view: color.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(wgpu::TextureFormat::Rgba8Unorm),
+                ..Default::default()
+            }),
             depth: depth.create_view(&Default::default()),
             color,
             size,

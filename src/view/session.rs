@@ -112,6 +112,7 @@ impl App {
         self.worker.send(Command::Load {
             job: self.session.job,
             source: Source(source.clone()),
+            outside: self.outside,
             mesh: self.mesh_settings.clone(),
             solver: self.solver_settings.clone(),
             auto_method: self.auto_method,
