@@ -693,6 +693,9 @@ fn loaded_event(id: u64, scene: &Scene, prepared: &Prepared) -> Event {
     }
 }
 
+/// Loads, meshes and prepares the scene of a `Command::Load` (its fields, then the cancel
+/// flag and the event sink).
+#[allow(clippy::too_many_arguments)]
 fn load(
     id: u64,
     source: &Source,
