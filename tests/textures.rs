@@ -108,6 +108,11 @@ fn texel(scene: &Scene, mesh: &Mesh, e: u32, p: Vec3) -> Vec4 {
 /// Vulkan filters anisotropically with a Gaussian-like kernel even when magnifying,
 /// which blurs a random-texel image by up to 70 levels against bilinear filtering.
 fn textured_quad(dir: &Path) -> PathBuf {
+    textured_quad_placed(dir, None)
+}
+
+/// [`textured_quad`] with its node's `matrix` (column-major), when given.
+fn textured_quad_placed(dir: &Path, matrix: Option<[f64; 16]>) -> PathBuf {
     let img = image::RgbaImage::from_fn(32, 32, |x, y| {
         let (u, v) = ((x as f32 + 0.5) / 32.0, (y as f32 + 0.5) / 32.0);
         let tau = std::f32::consts::TAU;
@@ -137,7 +142,10 @@ fn textured_quad(dir: &Path) -> PathBuf {
         "asset": {"version": "2.0"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
+        "nodes": [match matrix {
+            Some(m) => serde_json::json!({"mesh": 0, "matrix": m}),
+            None => serde_json::json!({"mesh": 0}),
+        }],
         "meshes": [{"primitives": [{
             "attributes": {"POSITION": 0, "TEXCOORD_0": 1},
             "indices": 2,
@@ -338,4 +346,53 @@ fn the_final_gather_shows_the_texture_under_the_gathered_light() {
     // pixels per texel, so by up to 0.018 within half a pixel; the gather's own error
     // (0.05 % of the light per node) is far below that.
     assert!(p99 < 0.02, "p99 {p99}");
+}
+
+#[test]
+fn a_mirrored_object_shows_its_texture_mirrored() {
+    let dir = common::scratch_dir("textured-quad-mirrored");
+    let sky = Vec3::new(0.8, 0.6, 0.4);
+    // The square mirrored in x (scale −1, 1, 1): the loader swaps its triangles' winding
+    // to keep them counter-clockwise in the world, and each corner must keep its own
+    // texture coordinates. The truth: the point (x, 0, z) of the world is the square's
+    // local point (−x, 0, z), whose coordinates are (−x + ½, z + ½) (`textured_quad`).
+    let mirror = [
+        -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    let path = textured_quad_placed(&dir, Some(mirror));
+    let scene = radiosity::scene::open(path.to_str().unwrap(), Some(sky), None).unwrap();
+    let camera = Camera::framing(Vec3::ZERO, 0.3, 0.0, 89f32.to_radians());
+    let size = [100, 100];
+    let (prepared, image) = solve_and_render(&scene, &camera, size);
+    let t = scene.materials[0].base_texture.unwrap();
+    let mut errors = Vec::new();
+    for y in 0..size[1] {
+        for x in 0..size[0] {
+            let Some((_, p)) = visible(&prepared, &camera, size, x, y) else {
+                continue;
+            };
+            let world = prepared.mesh.origin.as_vec3() + p;
+            let uv = Vec2::new(-world.x + 0.5, world.z + 0.5);
+            let want = scene.images[t.image as usize]
+                .sample(0, uv, t.wrap)
+                .truncate()
+                * sky
+                * 0.999;
+            let got = image.get_pixel(x, y).0;
+            for c in 0..3 {
+                errors.push((encode(want[c]) as i32 - got[c] as i32).abs());
+            }
+        }
+    }
+    assert!(
+        errors.len() > 3 * 5_000,
+        "the square fills the view: {}",
+        errors.len() / 3
+    );
+    errors.sort();
+    let mean = errors.iter().sum::<i32>() as f64 / errors.len() as f64;
+    let p99 = errors[errors.len() * 99 / 100];
+    eprintln!("mirrored textured quad: mean |Δ| {mean:.2}, p99 {p99}");
+    // The tolerance of the unmirrored square's test.
+    assert!(mean <= 1.0 && p99 <= 3, "mean {mean}, p99 {p99}");
 }

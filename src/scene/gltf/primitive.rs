@@ -192,7 +192,16 @@ impl Loader<'_> {
                         let e = a.element(v as usize);
                         Vec2::new(e[0] as f32, e[1] as f32)
                     };
-                    uv_sets.push((set, kept.iter().map(|t| t.map(uv)).collect()));
+                    // In the corners' order of `object.triangles` (swapped for mirrored
+                    // transforms, above), so that each corner keeps its own coordinates.
+                    let corners = |t: &[u32; 3]| {
+                        let mut c = t.map(uv);
+                        if mirrored {
+                            c.swap(1, 2);
+                        }
+                        c
+                    };
+                    uv_sets.push((set, kept.iter().map(corners).collect()));
                 }
                 Err(e) => {
                     if !self.missing_uv_warned.contains(&(material as usize)) {
