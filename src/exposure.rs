@@ -22,7 +22,7 @@ pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32)
     let mut lit: Vec<f32> = Vec::new();
     let mut top = 0.0f32;
     for (i, b) in radiosity.iter().enumerate().step_by(step) {
-        let l = b.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        let l = luminance(*b);
         if !l.is_finite() || l <= 0.0 {
             continue;
         }
@@ -36,41 +36,45 @@ pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32)
         return None;
     }
     let p95 = percentile(&mut lit, 0.95);
-    let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
-    Some((ev, (p95.log10() - 3.0, top.max(p95).log10())))
+    Some((ev_for(p95), (p95.log10() - 3.0, top.max(p95).log10())))
+}
+
+/// Rec. 709 luminance of a radiosity.
+fn luminance(b: Vec3) -> f32 {
+    b.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// The EV that shows radiosity luminance `p95` (W/m²) at an exposed radiance of 0.8.
+fn ev_for(p95: f32) -> f32 {
+    (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0)
 }
 
 /// Auto exposure metered on what a camera sees: [`auto_exposure`]'s rule (the 95th
 /// percentile of the lit, non-emitting surfaces' radiance at 0.8) over the elements first
 /// hit by `rays` (origin and unit direction, mesh frame; a grid over the view), as a
 /// camera's meter reads its frame. A scene lit through its roof is then exposed for the
-/// arcade in view, not for the sunny floor behind the camera. The false-colour range is
-/// the scene's (from [`auto_exposure`]); `None` when no ray meets a lit surface.
+/// arcade in view, not for the sky-lit floor behind the camera. The EV, or `None` when
+/// no ray meets a lit surface.
 pub fn metered_exposure(
     mesh: &Mesh,
     bvh: &Bvh,
     radiosity: &[Vec3],
     rays: &[(Vec3, Vec3)],
-) -> Option<(f32, (f32, f32))> {
-    let (_, range) = auto_exposure(mesh, radiosity)?;
+) -> Option<f32> {
     let mut seen: Vec<f32> = rays
         .iter()
         .filter_map(|&(origin, dir)| {
             let hit = bvh.closest_hit(origin, dir, 0.0, f32::INFINITY, u32::MAX)?;
             let e = mesh.element_at(hit.triangle, origin + dir * hit.t, -dir)?;
             let patch = &mesh.patches[mesh.elements[e as usize].patch as usize];
-            let l = radiosity
-                .get(e as usize)?
-                .dot(Vec3::new(0.2126, 0.7152, 0.0722));
+            let l = luminance(*radiosity.get(e as usize)?);
             (patch.emission.max_element() <= 0.0 && l.is_finite() && l > 0.0).then_some(l)
         })
         .collect();
     if seen.is_empty() {
         return None;
     }
-    let p95 = percentile(&mut seen, 0.95);
-    let ev = (0.8 * std::f32::consts::PI / p95).log2().clamp(-40.0, 40.0);
-    Some((ev, range))
+    Some(ev_for(percentile(&mut seen, 0.95)))
 }
 
 /// Tone-mapping operators, from exposed linear radiance to linear display values in

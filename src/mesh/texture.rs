@@ -20,9 +20,19 @@ pub struct PatchTexture {
 impl PatchTexture {
     /// The coordinates in `slot` at barycentric point `bary` of the patch.
     pub fn uv_at(&self, slot: Slot, bary: [f32; 3]) -> Vec2 {
-        let uv = &self.uv[slot as usize];
-        uv[0] * bary[0] + uv[1] * bary[1] + uv[2] * bary[2]
+        interpolate(&self.uv[slot as usize], bary)
     }
+
+    /// 1 / the base and emissive means (each channel at most 10⁶): the factors that turn
+    /// the solved ρ_e and E_e into the textures' factors (ρ(uv) = ρ_e · T(uv) / T̄).
+    pub fn inverse_means(&self) -> [Vec3; 2] {
+        self.mean.map(|m| Vec3::ONE / m.max(Vec3::splat(1e-6)))
+    }
+}
+
+/// The value at barycentric point `bary` of the corner values `corners`.
+fn interpolate(corners: &[Vec2; 3], bary: [f32; 3]) -> Vec2 {
+    corners[0] * bary[0] + corners[1] * bary[1] + corners[2] * bary[2]
 }
 
 impl Mesh {
@@ -62,10 +72,8 @@ pub(super) fn patch_textures(mesh: &Mesh, scene: &Scene) -> Vec<PatchTexture> {
                 scene.objects[p.object as usize].textured(p.triangle as usize);
             let triangle = &mesh.triangles[p.scene_triangle as usize];
             let uv = std::array::from_fn(|slot| {
-                p.verts.map(|v| {
-                    let b = barycentric(triangle, v);
-                    t.uv[slot][0] * b[0] + t.uv[slot][1] * b[1] + t.uv[slot][2] * b[2]
-                })
+                p.verts
+                    .map(|v| interpolate(&t.uv[slot], barycentric(triangle, v)))
             });
             PatchTexture { uv, mean: t.mean }
         })

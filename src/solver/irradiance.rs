@@ -6,18 +6,22 @@
 
 use glam::Vec3;
 
-/// H per element and channel from radiosity, reflectance and emitted radiosity (W/m²).
-/// A channel with ρ = 0 reflects nothing, so its H is unknown and does not matter: 0.
+/// H per element and channel from radiosity, reflectance and emitted radiosity (W/m²)
+/// ([`irradiance_at`] of each element).
 pub fn irradiance(radiosity: &[Vec3], reflectance: &[Vec3], emission: &[Vec3]) -> Vec<Vec3> {
     radiosity
         .iter()
         .zip(reflectance)
         .zip(emission)
-        .map(|((b, rho), e)| {
-            let h = (*b - *e) / *rho;
-            Vec3::select(rho.cmpgt(Vec3::ZERO), h.max(Vec3::ZERO), Vec3::ZERO)
-        })
+        .map(|((b, rho), e)| irradiance_at(*b, *rho, *e))
         .collect()
+}
+
+/// H from one radiosity `b`, reflectance `rho` and emitted radiosity `e`. A channel with
+/// ρ = 0 reflects nothing, so its H is unknown and does not matter: 0.
+pub fn irradiance_at(b: Vec3, rho: Vec3, e: Vec3) -> Vec3 {
+    let h = (b - e) / rho;
+    Vec3::select(rho.cmpgt(Vec3::ZERO), h.max(Vec3::ZERO), Vec3::ZERO)
 }
 
 #[cfg(test)]

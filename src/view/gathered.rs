@@ -92,15 +92,15 @@ impl GatheredView<'_> {
             return b;
         };
         let (rho, e) = self.gatherer.surface(seen.element);
-        let h = crate::solver::irradiance(&[b], &[rho], &[e])[0];
+        let h = crate::solver::irradiance_at(b, rho, e);
         let base = self
             .texel(mesh, seen, m.base_texture, Slot::Base)
             .truncate();
         let glow = self
             .texel(mesh, seen, m.emissive_texture, Slot::Emissive)
             .truncate();
-        let inverse = |m: Vec3| Vec3::ONE / m.max(Vec3::splat(1e-6));
-        rho * inverse(t.mean[0]) * base * h + e * inverse(t.mean[1]) * glow
+        let [inverse_base, inverse_glow] = t.inverse_means();
+        rho * inverse_base * base * h + e * inverse_glow * glow
     }
 
     /// `texture` (white when `None`) at the seen point, at the mip level whose texels

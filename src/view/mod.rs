@@ -40,8 +40,9 @@ use std::path::Path;
 pub use crate::exposure::auto_exposure;
 
 /// Auto exposure metered on what `camera` sees in a view of `aspect` (width / height):
-/// `exposure::metered_exposure` over a 48 × 32 grid of the view's rays, falling back to the
-/// scene-wide rule when the view shows no lit surface.
+/// `exposure::metered_exposure` over a 48 × 32 grid of the view's rays, the scene-wide
+/// rule's EV when the view shows no lit surface; the false-colour range is the scene's
+/// (`auto_exposure`).
 pub fn view_exposure(
     mesh: &Mesh,
     bvh: &Bvh,
@@ -49,13 +50,14 @@ pub fn view_exposure(
     camera: &Camera,
     aspect: f32,
 ) -> Option<(f32, (f32, f32))> {
+    let (scene_ev, range) = auto_exposure(mesh, radiosity)?;
     let (w, h) = (48.0 * aspect.clamp(0.25, 4.0), 32.0);
     let rays: Vec<(Vec3, Vec3)> = (0..32)
         .flat_map(|y| (0..w as u32).map(move |x| (x, y)))
         .map(|(x, y)| camera.ray(x as f32 + 0.5, y as f32 + 0.5, w.floor(), h))
         .collect();
-    crate::exposure::metered_exposure(mesh, bvh, radiosity, &rays)
-        .or_else(|| auto_exposure(mesh, radiosity))
+    let ev = crate::exposure::metered_exposure(mesh, bvh, radiosity, &rays).unwrap_or(scene_ev);
+    Some((ev, range))
 }
 pub(crate) use crate::exposure::percentile;
 

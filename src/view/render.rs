@@ -744,17 +744,14 @@ pub fn bezier_points(mesh: &Mesh, values: &[Vec3]) -> Vec<Bezier> {
         .collect()
 }
 
-/// Per element, 1 / the base and emissive textures' means over its triangle (1 where
-/// untextured), which turn the solved ρ_e and E_e into the texture's factors.
+/// Per element, its patch's [`crate::mesh::PatchTexture::inverse_means`] (1 where untextured).
 fn inverse_texture_means(mesh: &Mesh) -> Vec<Vec3> {
     mesh.elements
         .iter()
         .flat_map(|e| {
-            let means = mesh
-                .textures
+            mesh.textures
                 .get(e.patch as usize)
-                .map_or([Vec3::ONE; 2], |t| t.mean);
-            means.map(|m| Vec3::ONE / m.max(Vec3::splat(1e-6)))
+                .map_or([Vec3::ONE; 2], |t| t.inverse_means())
         })
         .collect()
 }
