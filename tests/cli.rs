@@ -9,6 +9,17 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_radiosity"))
 }
 
+/// Runs `command`, failing the test unless it exits 0 (with its stderr in the message).
+fn succeed(command: &mut Command) -> std::process::Output {
+    let out = command.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 /// Where `radiosity probe` writes its values.
 enum To {
     /// `--out` this file.
@@ -29,12 +40,7 @@ fn probe(dir: &Path, scene: &str, points_csv: &str, to: To) -> Vec<Vec<f64>> {
     if let To::File(out) = &to {
         command.arg("--out").arg(out);
     }
-    let out = command.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = succeed(&mut command);
     let text = match &to {
         To::File(path) => std::fs::read_to_string(path).unwrap(),
         To::Stdout => String::from_utf8(out.stdout).unwrap(),
@@ -49,17 +55,12 @@ fn probe(dir: &Path, scene: &str, points_csv: &str, to: To) -> Vec<Vec<f64>> {
 #[test]
 fn solve_writes_stats_and_a_baked_glb() {
     let d = scratch_dir("cli-solve");
-    let out = bin()
-        .args(["solve", "builtin:cornell", "--quiet", "--stats"])
-        .arg(d.join("stats.json"))
-        .arg("--out")
-        .arg(d.join("baked.glb"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeed(
+        bin()
+            .args(["solve", "builtin:cornell", "--quiet", "--stats"])
+            .arg(d.join("stats.json"))
+            .arg("--out")
+            .arg(d.join("baked.glb")),
     );
     let stats: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.join("stats.json")).unwrap()).unwrap();
@@ -187,24 +188,19 @@ fn bad_input_exits_1_with_one_message_and_no_output_file() {
 #[test]
 fn bench_writes_curves_for_every_method() {
     let d = scratch_dir("cli-bench");
-    let out = bin()
-        .args([
-            "bench",
-            "builtin:cornell",
-            "--quiet",
-            "--reference",
-            "direct",
-            "--max-elements",
-            "600",
-            "--out",
-        ])
-        .arg(&d)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeed(
+        bin()
+            .args([
+                "bench",
+                "builtin:cornell",
+                "--quiet",
+                "--reference",
+                "direct",
+                "--max-elements",
+                "600",
+                "--out",
+            ])
+            .arg(&d),
     );
     let csv = std::fs::read_to_string(d.join("convergence.csv")).unwrap();
     assert!(csv.starts_with(
@@ -228,26 +224,21 @@ fn bench_writes_curves_for_every_method() {
 fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
     let d = scratch_dir("cli-bench-path");
     let run = || {
-        let out = bin()
-            .args([
-                "bench",
-                "builtin:penumbra",
-                "--quiet",
-                "--methods",
-                "gauss-seidel",
-                "--max-elements",
-                "400",
-                "--adaptive-threshold",
-                "0",
-                "--out",
-            ])
-            .arg(&d)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        succeed(
+            bin()
+                .args([
+                    "bench",
+                    "builtin:penumbra",
+                    "--quiet",
+                    "--methods",
+                    "gauss-seidel",
+                    "--max-elements",
+                    "400",
+                    "--adaptive-threshold",
+                    "0",
+                    "--out",
+                ])
+                .arg(&d),
         );
         std::fs::read_to_string(d.join("convergence.csv")).unwrap()
     };
@@ -289,26 +280,21 @@ fn bench_edits_writes_one_row_per_edit() {
     // edit; the first update can only come before convergence again, and every material
     // named is one the scene has.
     let d = scratch_dir("cli-bench-edits");
-    let out = bin()
-        .args([
-            "bench",
-            "builtin:cornell",
-            "--quiet",
-            "--edits",
-            "3",
-            "--max-elements",
-            "300",
-            "--link-error",
-            "0.1",
-            "--out",
-        ])
-        .arg(&d)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeed(
+        bin()
+            .args([
+                "bench",
+                "builtin:cornell",
+                "--quiet",
+                "--edits",
+                "3",
+                "--max-elements",
+                "300",
+                "--link-error",
+                "0.1",
+                "--out",
+            ])
+            .arg(&d),
     );
     let csv = std::fs::read_to_string(d.join("edits.csv")).unwrap();
     let mut lines = csv.lines();
@@ -332,22 +318,17 @@ fn bench_occlusion_writes_its_segments_for_another_ray_engine() {
     // ±0.3 m around its centre in the mesh frame).
     let d = scratch_dir("cli-bench-occlusion");
     let file = d.join("segments.bin");
-    let out = bin()
-        .args([
-            "bench",
-            "builtin:cornell",
-            "--occlusion",
-            "--segments",
-            "1000",
-            "--segments-out",
-        ])
-        .arg(&file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeed(
+        bin()
+            .args([
+                "bench",
+                "builtin:cornell",
+                "--occlusion",
+                "--segments",
+                "1000",
+                "--segments-out",
+            ])
+            .arg(&file),
     );
     let bytes = std::fs::read(&file).unwrap();
     assert_eq!(&bytes[..7], b"RADSEG1");

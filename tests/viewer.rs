@@ -8,6 +8,8 @@
 //! material edit must change the shown solution. Screenshots are written to
 //! `target/screenshots/` to be looked at.
 
+mod common;
+
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
@@ -15,7 +17,7 @@ use glam::Vec3;
 use radiosity::mesh::MeshSettings;
 use radiosity::solver::SolverSettings;
 use radiosity::view::app::{App, Options, Placement};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 fn screenshots() -> PathBuf {
@@ -83,6 +85,19 @@ fn assert_bleeding(img: &image::RgbaImage, x0: u32, y0: u32, x1: u32, y1: u32, w
     );
 }
 
+/// [`assert_bleeding`] over the 3D view's rect `r` (points; `ppp` pixels per point).
+fn assert_view_bleeding(img: &image::RgbaImage, r: egui::Rect, ppp: f32, what: &str) {
+    let px = |v: f32| (v * ppp) as u32;
+    assert_bleeding(
+        img,
+        px(r.min.x),
+        px(r.min.y),
+        px(r.max.x),
+        px(r.max.y),
+        what,
+    );
+}
+
 fn options(scene: &str) -> Options {
     Options {
         scene: scene.into(),
@@ -144,12 +159,10 @@ fn edge_pixels(img: &image::RgbaImage, r: egui::Rect, ppp: f32) -> usize {
 
 #[test]
 fn the_textures_switch_shows_textures_or_the_solution_alone() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/scenes/khronos-sample-assets/BoxTextured/glTF/BoxTextured.gltf");
-    if !path.is_file() && std::env::var_os("CI").is_none() {
-        eprintln!("skipped: {} is missing", path.display());
+    let Some(scenes) = common::shared_scenes() else {
         return;
-    }
+    };
+    let path = scenes.join("khronos-sample-assets/BoxTextured/glTF/BoxTextured.gltf");
     let mut h = harness(options(path.to_str().unwrap()));
     assert!(
         step_until(&mut h, 120.0, |a| a.converged() || a.error().is_some()),
@@ -205,15 +218,7 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         .unwrap();
     let r = h.state().viewport_rect().expect("the 3D view was laid out");
     let ppp = img.width() as f32 / 1280.0;
-    let px = |v: f32| (v * ppp) as u32;
-    assert_bleeding(
-        &img,
-        px(r.min.x),
-        px(r.min.y),
-        px(r.max.x),
-        px(r.max.y),
-        "kittest",
-    );
+    assert_view_bleeding(&img, r, ppp, "kittest");
 
     // Wireframe: the checkbox, then the W key.
     assert!(!h.state().wireframe());
@@ -245,14 +250,7 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         .save(screenshots().join("kittest_hermite.png"))
         .unwrap();
     assert_ne!(hermite, img, "Hermite shading changed nothing on screen");
-    assert_bleeding(
-        &hermite,
-        px(r.min.x),
-        px(r.min.y),
-        px(r.max.x),
-        px(r.max.y),
-        "kittest hermite",
-    );
+    assert_view_bleeding(&hermite, r, ppp, "kittest hermite");
     h.get_by_label("Gouraud").click();
     h.step();
 
@@ -642,16 +640,8 @@ fn the_final_gather_fills_the_resting_view_and_restarts_when_the_camera_moves() 
         .unwrap();
     let r = h.state().viewport_rect().expect("the 3D view was laid out");
     let ppp = img.width() as f32 / 720.0;
-    let px = |v: f32| (v * ppp) as u32;
     // The gathered picture over the view still shows the box's colour bleeding.
-    assert_bleeding(
-        &img,
-        px(r.min.x),
-        px(r.min.y),
-        px(r.max.x),
-        px(r.max.y),
-        "final gather",
-    );
+    assert_view_bleeding(&img, r, ppp, "final gather");
     // A camera move drops the pass at once; it starts again once the camera rests.
     let c = r.center();
     h.drag_at(c);
