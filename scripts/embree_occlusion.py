@@ -37,9 +37,11 @@ def main(path):
     dirs = np.ascontiguousarray(d, dtype=np.float32)
     dists = np.ascontiguousarray(length * (1 - 2e-4), dtype=np.float32)
     scene.run(origins[:1], dirs[:1], query="INTERSECT")  # builds the BVH
-    t = time.perf_counter()
-    hit = scene.run(origins, dirs, query="OCCLUDED", dists=dists)
-    seconds = time.perf_counter() - t
+    seconds = float("inf")
+    for _ in range(3):  # best of three, as `radiosity bench --occlusion` times itself
+        t = time.perf_counter()
+        hit = scene.run(origins, dirs, query="OCCLUDED", dists=dists)
+        seconds = min(seconds, time.perf_counter() - t)
     occluded = float(np.mean(hit >= 0)) * 100
     print(f"embree: {len(dirs)} segments, {occluded:.1f} % occluded, {seconds:.3f} s, "
           f"{len(dirs) / seconds / 1e6:.2f} M rays/s (threads: {os.cpu_count()} available)")

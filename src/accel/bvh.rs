@@ -1,7 +1,8 @@
 //! Binned-SAH BVH over triangles, with any-hit transmittance and closest-hit queries.
 
-use glam::{Vec3, Vec3A};
-use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, ray::Ray};
+use glam::Vec3;
+
+use super::wide::WideBvh;
 
 /// Bins per axis for the SAH sweep; 16 is the usual quality/speed balance (Wald 2007).
 const BINS: usize = 16;
@@ -49,19 +50,10 @@ pub struct Hit {
 pub struct Bvh {
     nodes: Vec<Node>,
     tris: Vec<Tri>,
-    /// The shadow-ray engine: obvhs's compressed 8-wide BVH, twice as fast as our binary
-    /// tree on the occlusion benchmark (examples/bvh_compare.rs), with its triangles in its
-    /// own leaf order.
-    fast: Option<Fast>,
-}
-
-#[derive(Clone)]
-struct Fast {
-    bvh: CwBvh,
-    tris: Vec<obvhs::triangle::Triangle>,
-    /// Caller's index and transmittance of each of `tris`.
-    ids: Vec<u32>,
-    transmittance: Vec<f32>,
+    /// The shadow-ray engine (`accel/wide.rs`): 4-wide, four triangles per leaf, about
+    /// four times our binary tree's rate on the occlusion benchmark
+    /// (examples/bvh_compare.rs).
+    wide: Option<WideBvh>,
 }
 
 impl std::fmt::Debug for Bvh {
@@ -137,34 +129,11 @@ impl Bvh {
             );
         }
         tris = order.iter().map(|&i| tris[i as usize]).collect();
-        let fast = (!tris.is_empty()).then(|| {
-            let all: Vec<obvhs::triangle::Triangle> = tris
-                .iter()
-                .map(|t| obvhs::triangle::Triangle {
-                    v0: Vec3A::from(t.v0),
-                    v1: Vec3A::from(t.v0 + t.e1),
-                    v2: Vec3A::from(t.v0 + t.e2),
-                })
-                .collect();
-            // Medium: no spatial splits, so each triangle is in exactly one leaf and a
-            // partly transparent one is counted once along a ray.
-            let bvh = build_cwbvh_from_tris(
-                &all,
-                BvhBuildParams::medium_build(),
-                &mut std::time::Duration::default(),
-            );
-            let order = &bvh.primitive_indices;
-            Fast {
-                tris: order.iter().map(|&i| all[i as usize]).collect(),
-                ids: order.iter().map(|&i| tris[i as usize].id).collect(),
-                transmittance: order
-                    .iter()
-                    .map(|&i| tris[i as usize].transmittance)
-                    .collect(),
-                bvh,
-            }
-        });
-        Bvh { nodes, tris, fast }
+        let positions: Vec<[Vec3; 3]> = tris.iter().map(|t| triangles[t.id as usize]).collect();
+        let ids: Vec<u32> = tris.iter().map(|t| t.id).collect();
+        let through: Vec<f32> = tris.iter().map(|t| t.transmittance).collect();
+        let wide = WideBvh::build(&positions, &ids, &through);
+        Bvh { nodes, tris, wide }
     }
 
     /// Number of triangles in the hierarchy.
@@ -183,7 +152,7 @@ impl Bvh {
     /// target surfaces) and within the first and last `1e-4` of the segment are ignored; the
     /// caller offsets the endpoints off their surfaces by a scene-relative epsilon.
     pub fn transmittance(&self, a: Vec3, b: Vec3, skip: [u32; 2]) -> f32 {
-        let Some(fast) = &self.fast else {
+        let Some(wide) = &self.wide else {
             return 1.0;
         };
         let dir = b - a;
@@ -191,23 +160,7 @@ impl Bvh {
             return 1.0;
         }
         // Parametric bounds along the segment; see the doc for where they come from.
-        let ray = Ray::new(Vec3A::from(a), Vec3A::from(dir), 1e-4, 1.0 - 1e-4);
-        let mut through = 1.0f32;
-        fast.bvh.ray_traverse_miss(ray, |ray, i| {
-            let id = fast.ids[i];
-            if id == skip[0] || id == skip[1] {
-                return f32::INFINITY;
-            }
-            let t = fast.tris[i].intersect(ray);
-            if t < f32::INFINITY {
-                through *= fast.transmittance[i];
-                if through <= 0.0 {
-                    return t; // opaque: stop
-                }
-            }
-            f32::INFINITY
-        });
-        through.max(0.0)
+        wide.transmittance(a, dir, 1e-4, 1.0 - 1e-4, skip)
     }
 
     /// [`Bvh::transmittance`] by our own binary tree: kept as the baseline of
@@ -441,8 +394,8 @@ impl Bvh {
         }
     }
 
-    /// Checks the structural invariants: every node's box contains its children or its
-    /// triangles, and every triangle is referenced by exactly one leaf.
+    /// Checks the structural invariants of both trees: every node's box contains its
+    /// children or its triangles, and every triangle is referenced by exactly one leaf.
     pub fn validate(&self) -> Result<(), String> {
         if self.tris.is_empty() {
             return Ok(());
@@ -483,10 +436,13 @@ impl Bvh {
                 }
             }
         }
-        if seen.iter().all(|&s| s) {
-            Ok(())
-        } else {
-            Err("a triangle is in no leaf".into())
+        if !seen.iter().all(|&s| s) {
+            return Err("a triangle is in no leaf".into());
+        }
+        let ids: Vec<u32> = self.tris.iter().map(|t| t.id).collect();
+        match &self.wide {
+            Some(wide) => wide.validate(&ids).map_err(|e| format!("wide tree: {e}")),
+            None => Err("no wide tree over the triangles".into()),
         }
     }
 }
