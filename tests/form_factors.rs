@@ -6,7 +6,7 @@
 //! forms from the radiation literature in `form_factor_closed_forms.rs`.
 
 mod common;
-use common::{F32_REL, prepared, ptp};
+use common::{F32_REL, contour_slack, prepared, ptp};
 use glam::{DVec3, Vec3};
 use radiosity::accel::Bvh;
 use radiosity::geometry::subdivide;
@@ -24,10 +24,12 @@ use radiosity::solver::hemicube::{Hemicube, hemicube_row};
 /// occluded (its shadow-ray fraction is not 1), so that only collocation error remains.
 /// Also returns the same average over the elements' four midpoint children (unoccluded,
 /// analytic), which converges four times faster: the pair estimates the collocation error.
-fn patch_form_factor(mesh: &Mesh, bvh: &Bvh, p: usize, q: usize) -> Option<(f64, f64)> {
+/// The third value is the f32 rounding bound of the coarse average (`contour_slack` per
+/// element, area-weighted), which the fine one shares within a factor of 2.
+fn patch_form_factor(mesh: &Mesh, bvh: &Bvh, p: usize, q: usize) -> Option<(f64, f64, f64)> {
     let settings = FormFactorSettings::default();
     let target = &mesh.patches[q];
-    let (mut coarse, mut fine) = (0.0, 0.0);
+    let (mut coarse, mut fine, mut slack) = (0.0, 0.0, 0.0);
     for i in mesh.patches[p].elements.clone() {
         let e = &mesh.elements[i as usize];
         let (f, _) = element_to_patch(mesh, bvh, i as usize, q, &settings);
@@ -37,13 +39,14 @@ fn patch_form_factor(mesh: &Mesh, bvh: &Bvh, p: usize, q: usize) -> Option<(f64,
             return None;
         }
         coarse += e.area as f64 * f as f64;
+        slack += e.area as f64 * contour_slack(e.centroid(), &target.verts);
         for child in subdivide(&e.verts) {
             let c = (child[0] + child[1] + child[2]) / 3.0;
             fine += e.area as f64 / 4.0 * ptp(c, e.normal, &target.verts);
         }
     }
     let area = mesh.patches[p].area as f64;
-    Some((coarse / area, fine / area))
+    Some((coarse / area, fine / area, slack / area))
 }
 
 #[test]
@@ -61,7 +64,7 @@ fn element_to_patch_is_reciprocal_on_the_cornell_box() {
     let mut worst: f64 = 0.0;
     for p in 0..mesh.patches.len() {
         for q in p + 1..mesh.patches.len() {
-            let (Some((fpq, fpq_fine)), Some((fqp, fqp_fine))) = (
+            let (Some((fpq, fpq_fine, spq)), Some((fqp, fqp_fine, sqp))) = (
                 patch_form_factor(mesh, bvh, p, q),
                 patch_form_factor(mesh, bvh, q, p),
             ) else {
@@ -79,7 +82,9 @@ fn element_to_patch_is_reciprocal_on_the_cornell_box() {
             let (left, right) = (ap * fpq, aq * fqp);
             let collocation =
                 4.0 / 3.0 * (ap * (fpq - fpq_fine).abs() + aq * (fqp - fqp_fine).abs());
-            let bound = 2.0 * collocation + F32_REL * (left + right);
+            // f32 rounding of both sides, coarse and fine.
+            let rounding = 3.0 * (ap * spq + aq * sqp);
+            let bound = 2.0 * collocation + F32_REL * (left + right) + rounding;
             // Near a shared or close edge the kernel is singular and the one-point rule's
             // error is not O(h²), so the Richardson estimate is not a bound there: check
             // the bound only for separated pairs (closest vertices at least one patch
@@ -113,7 +118,7 @@ fn element_to_patch_is_reciprocal_on_the_cornell_box() {
                 separated += 1;
             } else if mesh.patches[p].object == mesh.patches[q].object {
                 assert!(
-                    fine_gap <= (left - right).abs() * 1.05 + 2e-3 * (left + right),
+                    fine_gap <= (left - right).abs() * 1.05 + 2e-3 * (left + right) + rounding,
                     "patches {p}, {q}: refinement widened the gap: {} → {fine_gap} (areas {ap} {aq}, F {fpq} {fqp}, gap {gap_min}, objects {} {})",
                     (left - right).abs(),
                     mesh.patches[p].object,

@@ -29,7 +29,9 @@
 //!     the floor at the foot of a block) is split down to the last level, and the last
 //!     level's nodes within twelve radii have their radiosity gathered at their centroids
 //!     in turn (one level deep, at a coarser error) instead of read from the mesh, which
-//!     does not resolve the light within millimetres of a corner or a contact.
+//!     does not resolve the light within millimetres of a corner or a contact. Those
+//!     centroids are fixed points of the mesh, shared by neighbouring pixels and probes,
+//!     so their gathers are memoised ([`NearField`]).
 //!   - A cluster contributes its mean radiosity through its projected area (as the
 //!     hierarchical solver's cluster links do) times the visibility of its sample patches,
 //!     when its bound A · B_max / (π gap²) is below δ; otherwise its children are visited.
@@ -50,8 +52,10 @@ use crate::light::direct::irradiance;
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::f32::consts::PI;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// How closely the gather follows the light.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -126,6 +130,58 @@ pub struct Gatherer {
     corners: Vec<[Vec3; 3]>,
     /// The floor of the irradiance scale: 2 % of the scene's area-mean H (channel sum).
     floor: f32,
+    near: NearField,
+}
+
+/// The near field's gathers, memoised by element, depth and point.
+///
+/// A near-field gather at a node's centroid c of element e depends on (e, c) and its depth
+/// alone (its
+/// rays are seeded by c), so a remembered value is exactly the value it would compute
+/// again, whichever thread asks first: results stay independent of the thread count and of
+/// the order of the points. On a 160 × 120 final-gathered Cornell box, each pixel asked for
+/// 17 of them on average, 82 % of the gather's work, and neighbouring pixels ask for the
+/// same ones.
+struct NearField {
+    shards: Vec<Mutex<HashMap<(u32, u8, [u32; 3]), Vec3>>>,
+    len: AtomicUsize,
+}
+
+/// Lock shards: enough that threads rarely wait on one another.
+const NEAR_SHARDS: usize = 64;
+/// Remembered values at most (about 40 bytes each: 40 MB); past this, values are computed
+/// and not kept, so a long viewer session cannot grow the table without bound.
+const NEAR_CAPACITY: usize = 1 << 20;
+
+impl NearField {
+    fn new() -> NearField {
+        NearField {
+            shards: (0..NEAR_SHARDS)
+                .map(|_| Mutex::new(HashMap::new()))
+                .collect(),
+            len: AtomicUsize::new(0),
+        }
+    }
+
+    /// The value for `(e, depth, c)`, computed by `gather` when not remembered.
+    fn get_or_gather(&self, e: u32, depth: u8, c: Vec3, gather: impl FnOnce() -> Vec3) -> Vec3 {
+        let key = (e, depth, c.to_array().map(f32::to_bits));
+        let [cx, cy, cz] = key.2.map(u64::from);
+        let h = hash(u64::from(e) ^ u64::from(depth) << 32 ^ cx << 8 ^ cy << 24 ^ cz << 40);
+        let shard = &self.shards[h as usize % NEAR_SHARDS];
+        // A poisoned lock only means another thread panicked mid-insert; the map is intact.
+        if let Some(v) = shard.lock().unwrap_or_else(|p| p.into_inner()).get(&key) {
+            return *v;
+        }
+        let v = gather();
+        if self.len.load(Ordering::Relaxed) < NEAR_CAPACITY {
+            let mut map = shard.lock().unwrap_or_else(|p| p.into_inner());
+            if map.insert(key, v).is_none() {
+                self.len.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        v
+    }
 }
 
 /// A solution: radiosity, reflectance and emission per element.
@@ -239,6 +295,7 @@ impl Gatherer {
             node_patch,
             corners,
             floor,
+            near: NearField::new(),
         }
     }
 
@@ -320,7 +377,8 @@ impl Gatherer {
         factor: f32,
     ) -> Vec3 {
         if depth < NEAR_DEPTH && factor > NEAR_FACTOR && (c - x).length() < GATHER_RADII * r {
-            self.at_depth(e, c, depth + 1)
+            self.near
+                .get_or_gather(e, depth + 1, c, || self.at_depth(e, c, depth + 1))
         } else {
             mean
         }

@@ -101,12 +101,28 @@ pub fn rms(a: &[Vec3], b: &[Vec3], mesh: &Mesh) -> f64 {
     (num / den).sqrt()
 }
 
-/// Relative error of one f32 form factor plus f64 summation: a few ulps of f32.
-/// `point_to_polygon` evaluates Lambert's contour integral in f64 and returns f32, so a
-/// single value carries a relative error of about 2⁻²⁴ ≈ 6e-8; sums of a few hundred such
-/// values in f64 stay within 1e-6 relative.
+/// Relative error of one f32 form factor plus f64 summation: a few ulps of f32 per value,
+/// and sums of a few hundred such values in f64 stay within 1e-6 relative. On top of it,
+/// each `point_to_polygon` carries the absolute error [`contour_slack`] of its f32 contour
+/// terms.
 #[allow(dead_code)]
 pub const F32_REL: f64 = 1e-6;
+
+/// The absolute error bound of one f32 `point_to_polygon` (see its doc): its contour terms
+/// are each at most γ_k (the angle edge k subtends at `p`) with a few f32 ulps of relative
+/// error, so the sum is off by at most 10⁻⁶ · Σ_k γ_k / 2π. Computed here in f64 with
+/// libm's atan2.
+#[allow(dead_code)]
+pub fn contour_slack(p: Vec3, poly: &[Vec3]) -> f64 {
+    let rel: Vec<glam::DVec3> = poly.iter().map(|v| (*v - p).as_dvec3()).collect();
+    let angles: f64 = (0..rel.len())
+        .map(|k| {
+            let (a, b) = (rel[k], rel[(k + 1) % rel.len()]);
+            a.cross(b).length().atan2(a.dot(b))
+        })
+        .sum();
+    1e-6 * angles / std::f64::consts::TAU
+}
 
 /// The form factor from a point `p` with normal `n` to the polygon `poly`
 /// (`point_to_polygon`, Lambert's contour integral), as f64.

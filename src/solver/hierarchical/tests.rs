@@ -63,7 +63,9 @@ fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
 fn with_links_fixed_at_the_leaves_the_sweeps_reach_the_dense_solution() {
     // One element per patch, every pair of patches linked, no refinement: the hierarchy is
     // then the flat system B = E' + ρ F B with F_ij the links' factors (the linear transfer
-    // at the receiver's centroid, which is the mean of its quadrature values).
+    // at the receiver's centroid, which is the mean of its quadrature values). The
+    // tolerance of 1e-12 is below what f32 sweeps can reach: they must stop at their
+    // rounding floor rather than cycle there (this test hung before `SWEEP_FLOOR`).
     let mut s = solver(
         MeshSettings {
             element_size: Some(10.0),
