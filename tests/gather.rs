@@ -1,6 +1,7 @@
 //! The final gather (`probe`'s default) against closed forms and the path-traced
-//! reference: parallel and perpendicular plates down to 0.1 mm from their edges, the
-//! penumbra scene in its umbra and penumbra, and a sample of Cornell-box points.
+//! reference: parallel and perpendicular plates down to 0.1 mm from their edges (near the
+//! origin, a kilometre from it and at millimetre scale), the penumbra scene in its umbra
+//! and penumbra, and a sample of Cornell-box points.
 
 mod common;
 use common::quad_object;
@@ -28,11 +29,11 @@ fn gathered(scene: &Scene, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {
 
 /// Two 1 m squares, an emitter of radiance 1 with ρ = 0 and a receiver of ρ = 0.5, the
 /// emitter `emitter` (corners), the receiver on y = 0 facing +y with x in ±0.5 and z in
-/// `z0..z0 + 1`.
-fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
+/// `z0..z0 + 1`; both placed in the world by `frame`.
+fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32, frame: DMat4) -> Scene {
     let receiver = quad_object(
         "receiver",
-        DMat4::IDENTITY,
+        frame,
         [
             [-0.5, 0.0, z0],
             [-0.5, 0.0, z0 + 1.0],
@@ -43,10 +44,7 @@ fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
     );
     Scene {
         name: name.into(),
-        objects: vec![
-            receiver,
-            quad_object("emitter", DMat4::IDENTITY, emitter, 1),
-        ],
+        objects: vec![receiver, quad_object("emitter", frame, emitter, 1)],
         materials: vec![
             Material::diffuse("receiver", Vec3::splat(RHO as f32)),
             Material::emitter("emitter", Vec3::ZERO, Vec3::ONE),
@@ -58,19 +56,41 @@ fn plates(name: &str, emitter: [[f32; 3]; 4], z0: f32) -> Scene {
     }
 }
 
-/// Receiver points (x, 0, z) facing +y.
-fn on_receiver(xz: Vec<(f64, f64)>) -> Vec<(DVec3, DVec3)> {
+/// Receiver points (x, 0, z) facing +y, placed in the world by `frame`.
+fn on_receiver(xz: Vec<(f64, f64)>, frame: DMat4) -> Vec<(DVec3, DVec3)> {
     xz.into_iter()
-        .map(|(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
+        .map(|(x, z)| (frame.transform_point3(DVec3::new(x, 0.0, z)), DVec3::Y))
         .collect()
 }
 
-fn worst(points: &[(DVec3, DVec3)], got: &[Vec3], exact: impl Fn(DVec3) -> f64) -> f64 {
+/// Where the plates are put: at the origin, a kilometre away from it (the mesh keeps f32
+/// coordinates relative to its own origin), and a thousand times smaller (form factors
+/// depend on ratios of lengths only, so the closed forms are the same).
+fn frames() -> [(&'static str, DMat4); 3] {
+    [
+        ("at the origin", DMat4::IDENTITY),
+        (
+            "1 km from the origin",
+            DMat4::from_translation(DVec3::new(1000.0, 250.0, -1000.0)),
+        ),
+        ("at millimetre scale", DMat4::from_scale(DVec3::splat(1e-3))),
+    ]
+}
+
+/// Largest relative error of the red channel of `got` against `exact` at the points'
+/// positions in the plates' own frame.
+fn worst(
+    points: &[(DVec3, DVec3)],
+    got: &[Vec3],
+    frame: DMat4,
+    exact: impl Fn(DVec3) -> f64,
+) -> f64 {
+    let local = frame.inverse();
     points
         .iter()
         .zip(got)
         .map(|((p, _), g)| {
-            let e = exact(*p);
+            let e = exact(local.transform_point3(*p));
             let err = (g.x as f64 - e).abs() / e;
             if err > 1e-3 {
                 eprintln!("  {p}: {} vs {e} ({err:.2e})", g.x);
@@ -82,60 +102,73 @@ fn worst(points: &[(DVec3, DVec3)], got: &[Vec3], exact: impl Fn(DVec3) -> f64) 
 
 #[test]
 fn parallel_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_edges() {
-    // Receiver z in ±0.5; the emitter 0.5 m above it, facing down.
-    let scene = plates(
-        "parallel plates",
-        [
-            [-0.5, 0.5, -0.5],
-            [0.5, 0.5, -0.5],
-            [0.5, 0.5, 0.5],
-            [-0.5, 0.5, 0.5],
-        ],
-        -0.5,
-    );
-    let mut pts = Vec::new();
-    for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
-        let c = 0.5 - d;
-        pts.extend([(c, 0.0), (0.0, c), (c, c), (-c, 0.3), (0.2, -c)]);
+    // Receiver z in ±0.5; the emitter 0.5 m or 5 cm above it (the near field),
+    // facing down; in each of the frames.
+    for gap in [0.5f32, 0.05] {
+        for (place, frame) in frames() {
+            let scene = plates(
+                "parallel plates",
+                [
+                    [-0.5, gap, -0.5],
+                    [0.5, gap, -0.5],
+                    [0.5, gap, 0.5],
+                    [-0.5, gap, 0.5],
+                ],
+                -0.5,
+                frame,
+            );
+            let mut pts = Vec::new();
+            for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
+                let c = 0.5 - d;
+                pts.extend([(c, 0.0), (0.0, c), (c, c), (-c, 0.3), (0.2, -c)]);
+            }
+            let pts = on_receiver(pts, frame);
+            let got = gathered(&scene, &pts);
+            // B = ρ π L F(x) exactly (the emitter is black, nothing else is there). The
+            // gather sums exact point-to-polygon form factors of a uniform emitter with no
+            // occluder: only f32 rounding is left, so 0.1 %, within the goal of
+            // 0.5 %.
+            let w = worst(&pts, &got, frame, |p| {
+                RHO * PI * parallel_square(p.x, p.z, 0.5, gap as f64)
+            });
+            assert!(
+                w < 1e-3,
+                "gap {gap} m, {place}: worst relative error {w:.2e}"
+            );
+        }
     }
-    let pts = on_receiver(pts);
-    let got = gathered(&scene, &pts);
-    // B = ρ π L F(x) exactly (the emitter is black, nothing else is there). The gather sums
-    // exact point-to-polygon form factors of a uniform emitter with no occluder: only f32
-    // rounding is left, so 0.1 %, within the goal of 0.5 %.
-    let w = worst(&pts, &got, |p| {
-        RHO * PI * parallel_square(p.x, p.z, 0.5, 0.5)
-    });
-    assert!(w < 1e-3, "worst relative error {w:.2e}");
 }
 
 #[test]
 fn perpendicular_plates_are_exact_to_a_tenth_of_a_millimetre_from_the_contact() {
     // Receiver z in 0..1; the emitter wall stands on its edge z = 0, facing +z.
-    let scene = plates(
-        "perpendicular plates",
-        [
-            [-0.5, 0.0, 0.0],
-            [0.5, 0.0, 0.0],
-            [0.5, 1.0, 0.0],
-            [-0.5, 1.0, 0.0],
-        ],
-        0.0,
-    );
-    let mut pts = Vec::new();
-    for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
-        pts.extend([(0.0, d), (0.5 - 1e-3, d), (-0.3, d)]);
+    for (place, frame) in frames() {
+        let scene = plates(
+            "perpendicular plates",
+            [
+                [-0.5, 0.0, 0.0],
+                [0.5, 0.0, 0.0],
+                [0.5, 1.0, 0.0],
+                [-0.5, 1.0, 0.0],
+            ],
+            0.0,
+            frame,
+        );
+        let mut pts = Vec::new();
+        for d in [1e-4, 1e-3, 0.01, 0.1, 0.5] {
+            pts.extend([(0.0, d), (0.5 - 1e-3, d), (-0.3, d)]);
+        }
+        let pts = on_receiver(pts, frame);
+        let got = gathered(&scene, &pts);
+        // Howell's catalogue, the two rectangles left and right of the point; as above,
+        // only rounding is left (0.1 %).
+        let w = worst(&pts, &got, frame, |p| {
+            RHO * PI
+                * (perpendicular_rectangle_corner(1.0, 0.5 - p.x, p.z)
+                    + perpendicular_rectangle_corner(1.0, p.x + 0.5, p.z))
+        });
+        assert!(w < 1e-3, "{place}: worst relative error {w:.2e}");
     }
-    let pts = on_receiver(pts);
-    let got = gathered(&scene, &pts);
-    // Howell's catalogue, the two rectangles left and right of the point; as above, only
-    // rounding is left (0.1 %).
-    let w = worst(&pts, &got, |p| {
-        RHO * PI
-            * (perpendicular_rectangle_corner(1.0, 0.5 - p.x, p.z)
-                + perpendicular_rectangle_corner(1.0, p.x + 0.5, p.z))
-    });
-    assert!(w < 1e-3, "worst relative error {w:.2e}");
 }
 
 #[test]

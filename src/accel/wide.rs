@@ -228,24 +228,16 @@ impl WideBvh {
         t_max: f32,
         skip: [u32; 2],
     ) -> f32 {
+        let ray = Ray4::new(origin, dir, t_min, t_max);
         let needed = (self.depth + 1) * STACK_PER_LEVEL + 1;
         if needed <= INLINE_STACK {
-            self.walk(&mut [0; INLINE_STACK], origin, dir, t_min, t_max, skip)
+            self.walk(&mut [0; INLINE_STACK], &ray, skip)
         } else {
-            self.walk(&mut vec![0; needed], origin, dir, t_min, t_max, skip)
+            self.walk(&mut vec![0; needed], &ray, skip)
         }
     }
 
-    fn walk(
-        &self,
-        stack: &mut [u32],
-        origin: Vec3,
-        dir: Vec3,
-        t_min: f32,
-        t_max: f32,
-        skip: [u32; 2],
-    ) -> f32 {
-        let ray = Ray4::new(origin, dir, t_min, t_max);
+    fn walk(&self, stack: &mut [u32], ray: &Ray4, skip: [u32; 2]) -> f32 {
         let mut through = 1.0f32;
         stack[0] = self.root;
         let mut sp = 1;

@@ -31,6 +31,7 @@ use crate::accel::Bvh;
 use crate::geometry::sampling::{hash, stratified_point, stratum};
 use crate::mesh::Mesh;
 use glam::Vec3;
+use std::cmp::Ordering;
 use std::f32::consts::PI;
 
 /// Controls the visibility sampling of [`element_to_patch`].
@@ -110,7 +111,7 @@ fn far_field(rel: &[Vec3], n: Vec3) -> Option<f32> {
         moment += a.length() * (rel[0] + rel[k] + rel[k + 1]) / 3.0;
         total += a.length();
     }
-    if !(total > 0.0) {
+    if total.partial_cmp(&0.0) != Some(Ordering::Greater) {
         return None;
     }
     let centroid = moment / total;
@@ -119,7 +120,8 @@ fn far_field(rel: &[Vec3], n: Vec3) -> Option<f32> {
         .iter()
         .map(|r| (*r - centroid).length_squared())
         .fold(0.0, f32::max);
-    if !(r2 < FAR_FIELD * FAR_FIELD * d2) {
+    // NaN (a degenerate polygon) compares as neither: the contour handles it.
+    if r2.partial_cmp(&(FAR_FIELD * FAR_FIELD * d2)) != Some(Ordering::Less) {
         return None;
     }
     let w = centroid / d2.sqrt();
@@ -166,7 +168,7 @@ fn contour_integral(rel: &[Vec3], n: Vec3) -> f32 {
         }
         let c = a.cross(b - a);
         let lc = c.length();
-        if !(lc > f32::MIN_POSITIVE) {
+        if lc.partial_cmp(&f32::MIN_POSITIVE) != Some(Ordering::Greater) {
             continue;
         }
         sum += angle_between(lc, a.dot(b)) * n.dot(c) / lc;
@@ -194,7 +196,7 @@ pub fn angle_between(sin: f32, cos: f32) -> f32 {
     };
     let z = x * x;
     let atan = offset
-        + ((((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_294_9e-1)
+        + ((((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1)
             * z
             * x
             + x);

@@ -143,9 +143,12 @@ pub struct Gatherer {
 /// 17 of them on average, 82 % of the gather's work, and neighbouring pixels ask for the
 /// same ones.
 struct NearField {
-    shards: Vec<Mutex<HashMap<(u32, u8, [u32; 3]), Vec3>>>,
+    shards: Vec<Mutex<HashMap<NearKey, Vec3>>>,
     len: AtomicUsize,
 }
+
+/// Element, depth and the point's coordinate bits.
+type NearKey = (u32, u8, [u32; 3]);
 
 /// Lock shards: enough that threads rarely wait on one another.
 const NEAR_SHARDS: usize = 64;
