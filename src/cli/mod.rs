@@ -38,8 +38,7 @@ use std::time::{Duration, Instant};
     name = "radiosity",
     version,
     about,
-    long_about = None,
-    args_conflicts_with_subcommands = true
+    long_about = None
 )]
 pub struct Cli {
     /// With no subcommand: open the viewer on this scene (default builtin:cornell).
@@ -277,9 +276,12 @@ pub fn run(cli: Cli) -> Result<()> {
             .context("cannot set the thread count")?;
     }
     let quiet = cli.quiet;
-    let command = match cli.command {
-        Some(c) => c,
-        None => default_command(cli.scene)?,
+    let command = match (cli.command, cli.scene) {
+        (Some(c), None) => c,
+        (None, scene) => default_command(scene)?,
+        (Some(_), Some(scene)) => anyhow::bail!(
+            "{scene}: a scene given before a subcommand; give it after the subcommand's name"
+        ),
     };
     match command {
         #[cfg(feature = "viewer")]
@@ -424,6 +426,38 @@ mod tests {
         assert!(matches!(cli.command, Some(Command::Solve { .. })));
         let cli = Cli::try_parse_from(["radiosity"]).unwrap();
         assert!(cli.scene.is_none() && cli.command.is_none());
+        // The global flags go before the subcommand as well as after it (`radiosity -q
+        // solve …` used to read `solve` as a scene and fail).
+        for args in [
+            &[
+                "radiosity",
+                "-q",
+                "--threads",
+                "1",
+                "solve",
+                "builtin:cornell",
+            ][..],
+            &[
+                "radiosity",
+                "solve",
+                "builtin:cornell",
+                "-q",
+                "--threads",
+                "1",
+            ][..],
+        ] {
+            let cli = Cli::try_parse_from(args).unwrap();
+            assert!(
+                matches!(cli.command, Some(Command::Solve { .. })),
+                "{args:?}"
+            );
+            assert!(
+                cli.quiet && cli.threads == Some(1) && cli.scene.is_none(),
+                "{args:?}"
+            );
+        }
+        let cli = Cli::try_parse_from(["radiosity", "-q", "room.gltf"]).unwrap();
+        assert_eq!(cli.scene.as_deref(), Some("room.gltf"));
         let cli = Cli::try_parse_from([
             "radiosity",
             "render",
