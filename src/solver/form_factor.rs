@@ -95,7 +95,7 @@ pub fn point_to_polygon(p: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
 
 /// Below this ratio of a polygon's bounding radius to its distance, [`point_to_polygon`]
 /// uses the point formula.
-pub const FAR_FIELD: f32 = 5e-3;
+const FAR_FIELD: f32 = 5e-3;
 
 /// The point formula for a polygon (relative to the receiving point) that lies wholly in
 /// the upper hemisphere and is small against its distance; `None` otherwise.
@@ -107,9 +107,10 @@ fn far_field(rel: &[Vec3], n: Vec3) -> Option<f32> {
     let (mut area, mut moment, mut total) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
     for k in 1..rel.len() - 1 {
         let a = 0.5 * (rel[k] - rel[0]).cross(rel[k + 1] - rel[0]);
+        let size = a.length();
         area += a;
-        moment += a.length() * (rel[0] + rel[k] + rel[k + 1]) / 3.0;
-        total += a.length();
+        moment += size * (rel[0] + rel[k] + rel[k + 1]) / 3.0;
+        total += size;
     }
     if total.partial_cmp(&0.0) != Some(Ordering::Greater) {
         return None;
@@ -181,7 +182,7 @@ fn contour_integral(rel: &[Vec3], n: Vec3) -> f32 {
 /// `atanf` (Moshier 1989): reduction to |x| ≤ tan(π/8), then a degree-9 odd polynomial,
 /// within 2 f32 ulps of the true angle.
 #[inline]
-pub fn angle_between(sin: f32, cos: f32) -> f32 {
+fn angle_between(sin: f32, cos: f32) -> f32 {
     use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
     let (big, small) = (sin.max(cos.abs()), sin.min(cos.abs()));
     if big <= 0.0 {
@@ -332,6 +333,7 @@ pub const MAX_SAMPLES: usize = 256;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::sampling::unit;
 
     #[test]
     fn angle_between_matches_atan2_to_a_few_ulps() {
@@ -339,8 +341,8 @@ mod tests {
         // tiny angles: the doc's 2 ulps, with one more for the final rounding.
         let mut worst = 0.0f64;
         for i in 0..20_000u64 {
-            let h = crate::geometry::sampling::hash(i);
-            let angle = std::f64::consts::PI * crate::geometry::sampling::unit(h) as f64;
+            let h = hash(i);
+            let angle = std::f64::consts::PI * unit(h) as f64;
             let scale = 10f64.powi((h % 7) as i32 - 3);
             let (sin, cos) = ((angle.sin() * scale) as f32, (angle.cos() * scale) as f32);
             let want = (sin as f64).atan2(cos as f64);
@@ -380,9 +382,8 @@ mod tests {
         // scale A/(π d²), must stay within the doc's few 10⁻⁴.
         let mut worst = (0.0f64, 0.0f32);
         for i in 0..4000u64 {
-            let h = crate::geometry::sampling::hash(i);
-            let u =
-                |k: u64| crate::geometry::sampling::unit(crate::geometry::sampling::hash(h ^ k));
+            let h = hash(i);
+            let u = |k: u64| unit(hash(h ^ k));
             let dir = Vec3::new(u(1) - 0.5, u(2) - 0.5, 0.2 + u(3)).normalize();
             let tri = [
                 Vec3::new(u(4), u(5), u(6)) - 0.5,
@@ -400,7 +401,7 @@ mod tests {
             }
             let got = point_to_polygon(Vec3::ZERO, Vec3::Z, &rel) as f64;
             let want = contour_f64(&rel, Vec3::Z);
-            let scale = (area / (std::f32::consts::PI * d * d)) as f64;
+            let scale = (area / (PI * d * d)) as f64;
             let err = (got - want).abs() / scale;
             if err > worst.0 {
                 worst = (err, ratio);

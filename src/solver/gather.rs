@@ -136,10 +136,9 @@ pub struct Gatherer {
 /// The near field's gathers, memoised by element, depth and point.
 ///
 /// A near-field gather at a node's centroid c of element e depends on (e, c) and its depth
-/// alone (its
-/// rays are seeded by c), so a remembered value is exactly the value it would compute
-/// again, whichever thread asks first: results stay independent of the thread count and of
-/// the order of the points. On a 160 × 120 final-gathered Cornell box, each pixel asked for
+/// alone (its rays are seeded by c), so a remembered value is exactly the value it would
+/// compute again, whichever thread asks first: results stay independent of the thread
+/// count and of the order of the points. On a 160 × 120 final-gathered Cornell box, each pixel asked for
 /// 17 of them on average, 82 % of the gather's work, and neighbouring pixels ask for the
 /// same ones.
 struct NearField {

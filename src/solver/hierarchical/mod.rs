@@ -445,7 +445,6 @@ impl Solver {
     }
 
     /// One Jacobi sweep with push–pull; returns the area-weighted relative change of B.
-    /// (Converged below [`SWEEP_FLOOR`] whatever the tolerance.)
     fn sweep(&mut self, h: &mut Hierarchy) -> f64 {
         let mesh = &self.mesh;
         h.pull(mesh, &self.radiosity);
