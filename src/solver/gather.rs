@@ -43,6 +43,7 @@
 //! independent, so a set of points is gathered in parallel with results that do not depend
 //! on the thread count.
 
+use super::form_factor::strata_visibility;
 use super::hierarchical::clusters::Clusters;
 use super::hierarchical::transfer::{front_form_factor, projected_area};
 use crate::accel::Bvh;
@@ -537,15 +538,8 @@ impl Gatherer {
             return Visit::Add(f);
         }
         let strata = |k: u32, seed: u64| {
-            let (mut sum, mut lo, mut hi) = (0.0f32, f32::INFINITY, f32::NEG_INFINITY);
-            for i in 0..k * k {
-                let y = stratified_point(verts, k, i, seed) + normal * eps;
-                let t = self.bvh.transmittance(from, y, skip);
-                sum += t;
-                lo = lo.min(t);
-                hi = hi.max(t);
-            }
-            (sum / (k * k) as f32, hi > lo)
+            let seen = strata_visibility(&self.bvh, (x, n), (verts, normal), (eps, skip), k, seed);
+            (seen.fraction, seen.hi > seen.lo)
         };
         // Shadow rays agreeing prove nothing about a node much brighter than δ (16 rays
         // all blocked while a sliver of it shows past an occluder's edge): such a node is
@@ -581,10 +575,19 @@ impl Gatherer {
         if unoccluded <= 0.0 {
             return 0.0;
         }
+        // Shadow rays go to the sample patches that face x (a patch facing away sends
+        // nothing this way, and the projected area already leaves it out), or to all of
+        // them when none does.
         let eps = self.mesh.epsilon();
+        let facing = |p: &u32| {
+            let patch = &self.mesh.patches[*p as usize];
+            patch.normal.dot(x - patch.centroid()) > 0.0
+        };
+        let count = cluster.samples.iter().filter(|p| facing(p)).count();
         let through: f32 = cluster
             .samples
             .iter()
+            .filter(|p| count == 0 || facing(p))
             .enumerate()
             .map(|(k, &p)| {
                 let patch = &self.mesh.patches[p as usize];
@@ -593,7 +596,12 @@ impl Gatherer {
                 self.bvh.transmittance(from, y, [own, patch.scene_triangle])
             })
             .sum();
-        unoccluded * through / cluster.samples.len() as f32
+        let used = if count == 0 {
+            cluster.samples.len()
+        } else {
+            count
+        };
+        unoccluded * through / used as f32
     }
 }
 

@@ -13,9 +13,12 @@
 //!   split is split in the mesh first. The oracle runs again each time the sweeps converge
 //!   (B_s grows as light spreads), and the solve is done when it changes nothing.
 //! - **sweep** (Jacobi over the links, then push–pull): pull B up the hierarchy as area
-//!   means, gather H at every node over its links, push H down (a leaf receives the sum over
-//!   its ancestors, clusters included) and set B_leaf = E'_leaf + ρ_leaf · H; repeat until
-//!   the area-weighted change per sweep is below the tolerance.
+//!   means and, over each surface node, the slope of the linear fit to its leaves; gather
+//!   H at every node over its links, each source sending its linear B at the point the
+//!   receiver sees it best (the kernel-weighted centroid the link keeps); push H down (a
+//!   leaf receives the sum over its ancestors, clusters included) and set B_leaf =
+//!   E'_leaf + ρ_leaf · H; repeat until the area-weighted change per sweep is below the
+//!   tolerance.
 //!
 //! A link's factor does not depend on ρ or E, so an edit of a material only sweeps again
 //! (and lets the oracle look again): no existing form factor is recomputed.
@@ -65,7 +68,7 @@ impl NodeId {
     }
 }
 
-/// One link: 24 bytes, no heap allocation.
+/// One link: 28 bytes, no heap allocation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Link {
     pub receiver: NodeId,
@@ -76,6 +79,9 @@ pub(super) struct Link {
     at: [f32; 3],
     /// What the linear transfer may miss over the receiver (see `transfer`).
     pub spread: f32,
+    /// Where on a surface source the receiver's light comes from: the barycentric weights
+    /// of its corners 1 and 2 in units of 1/65535 (see `transfer::kernel_centroid`).
+    toward: [u16; 2],
 }
 
 impl Link {
@@ -85,6 +91,7 @@ impl Link {
         values: [f32; 3],
         spread: f32,
         partial: bool,
+        toward: [f32; 2],
     ) -> Link {
         let mut at = values.map(f32::abs);
         if partial {
@@ -98,7 +105,13 @@ impl Link {
             source,
             at,
             spread,
+            toward: toward.map(|w| (w.clamp(0.0, 1.0) * 65535.0).round() as u16),
         }
+    }
+    /// The barycentric weights of the source's corners at [`Link::toward`].
+    pub fn toward(&self) -> [f32; 3] {
+        let [u, v] = self.toward.map(|w| w as f32 / 65535.0);
+        [(1.0 - u - v).max(0.0), u, v]
     }
     /// The transfer at the three quadrature points.
     pub fn values(&self) -> [f32; 3] {
@@ -169,6 +182,9 @@ pub(super) struct Hierarchy {
     node_patch: Vec<u32>,
     node_area: Vec<f32>,
     node_b: Vec<Vec3>,
+    /// Slope of B over each surface node (see [`Hierarchy::pull`]): B(y) ≈ B̄ + Σ_a
+    /// slope[a] (y − c)_a, c the node's centroid; per axis a, one value per channel.
+    node_slope: Vec<[Vec3; 3]>,
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
     cluster_b: Vec<Vec3>,
@@ -213,6 +229,7 @@ impl Hierarchy {
             node_patch: Vec::new(),
             node_area: Vec::new(),
             node_b: Vec::new(),
+            node_slope: Vec::new(),
             node_h: Vec::new(),
             element_node: Vec::new(),
             patch_reflectance,
@@ -234,6 +251,7 @@ impl Hierarchy {
         self.node_patch.resize(n, NONE);
         self.node_area.resize(n, 0.0);
         self.node_b.resize(n, Vec3::ZERO);
+        self.node_slope.resize(n, [Vec3::ZERO; 3]);
         self.node_h.resize(n, [Vec3::ZERO; 3]);
         if old == 0 {
             for (p, patch) in mesh.patches.iter().enumerate() {
@@ -271,10 +289,43 @@ impl Hierarchy {
         }
     }
 
-    /// Pulls B up: each inner node and cluster gets the area mean of its children.
+    /// The radiosity a link's source sends it: a cluster's mean, or a surface node's
+    /// linear fit at the link's kernel centroid (`transfer::kernel_centroid`), never
+    /// negative.
+    fn source_b(&self, mesh: &Mesh, l: &Link) -> Vec3 {
+        match l.source.cluster() {
+            Some(c) => self.cluster_b[c],
+            None => {
+                let i = l.source.0 as usize;
+                let v = &mesh.nodes[i].verts;
+                let w = l.toward();
+                let d = v[0] * (w[0] - 1.0 / 3.0)
+                    + v[1] * (w[1] - 1.0 / 3.0)
+                    + v[2] * (w[2] - 1.0 / 3.0);
+                let g = &self.node_slope[i];
+                (self.node_b[i] + g[0] * d.x + g[1] * d.y + g[2] * d.z).max(Vec3::ZERO)
+            }
+        }
+    }
+
+    /// Pulls B up: each inner node and cluster gets the area mean of its children, and
+    /// each inner surface node the slope of the least-squares linear fit to its leaves'
+    /// radiosity (each leaf's B at its centroid, weighted by its area): g = M⁻¹ Σ_l A_l B_l
+    /// (c_l − c), with M = Σ_l A_l (c_l − c)(c_l − c)ᵀ in the node's plane, both moments
+    /// gathered up the tree by the parallel-axis rule. A leaf's B is constant (slope 0).
     fn pull(&mut self, mesh: &Mesh, radiosity: &[DVec3]) {
-        for i in (0..mesh.nodes.len()).rev() {
+        let n = mesh.nodes.len();
+        // Per node, in its plane's basis (t, b): the first moments Σ A (B − B̄) (c − c̄)·t
+        // and ·b, and the second moments Σ A (c − c̄)_t², _t _b, _b².
+        let mut first = vec![[Vec3::ZERO; 2]; n];
+        let mut second = vec![[0.0f32; 3]; n];
+        let centre = |i: usize| {
+            let v = &mesh.nodes[i].verts;
+            (v[0] + v[1] + v[2]) / 3.0
+        };
+        for i in (0..n).rev() {
             let node = &mesh.nodes[i];
+            self.node_slope[i] = [Vec3::ZERO; 3];
             self.node_b[i] = match (node.element, node.children) {
                 (Some(e), _) => radiosity[e as usize].as_vec3(),
                 (None, Some(kids)) => {
@@ -284,7 +335,31 @@ impl Hierarchy {
                         s += self.node_b[k as usize] * self.node_area[k as usize];
                         a += self.node_area[k as usize];
                     }
-                    if a > 0.0 { s / a } else { Vec3::ZERO }
+                    let mean = if a > 0.0 { s / a } else { Vec3::ZERO };
+                    let normal = mesh.patches[self.node_patch[i] as usize].normal;
+                    let (t, b) = crate::geometry::orthonormal_basis(normal);
+                    let c = centre(i);
+                    let (mut f, mut m) = ([Vec3::ZERO; 2], [0.0f32; 3]);
+                    for k in kids {
+                        let k = k as usize;
+                        let d = centre(k) - c;
+                        let (dt, db) = (d.dot(t), d.dot(b));
+                        let area = self.node_area[k];
+                        let weighted = (self.node_b[k] - mean) * area;
+                        f[0] += first[k][0] + weighted * dt;
+                        f[1] += first[k][1] + weighted * db;
+                        m[0] += second[k][0] + area * dt * dt;
+                        m[1] += second[k][1] + area * dt * db;
+                        m[2] += second[k][2] + area * db * db;
+                    }
+                    let det = m[0] * m[2] - m[1] * m[1];
+                    if det > 1e-6 * (m[0] + m[2]) * (m[0] + m[2]) {
+                        let gt = (f[0] * m[2] - f[1] * m[1]) / det;
+                        let gb = (f[1] * m[0] - f[0] * m[1]) / det;
+                        self.node_slope[i] = [0, 1, 2].map(|axis| gt * t[axis] + gb * b[axis]);
+                    }
+                    (first[i], second[i]) = (f, m);
+                    mean
                 }
                 (None, None) => Vec3::ZERO,
             };
@@ -324,12 +399,12 @@ impl Hierarchy {
                 if r.cluster().is_some() {
                     let at = centre(r);
                     for l in group {
-                        let e = self.b(l.source) * l.factor();
+                        let e = self.source_b(mesh, l) * l.factor();
                         o.add(e, (centre(l.source) - at).normalize_or_zero());
                     }
                 } else {
                     for l in group {
-                        let b = self.b(l.source);
+                        let b = self.source_b(mesh, l);
                         let c = l.corners();
                         for k in 0..3 {
                             h[k] += b * c[k];

@@ -300,14 +300,11 @@ impl View<'_> {
         Decision::Keep
     }
 
-    /// Whether neither end of a pair can be split further.
-    fn fine(&self, r: NodeId, s: NodeId) -> bool {
-        let unsplittable = |id: NodeId| {
-            id.cluster().is_none()
-                && self.mesh.nodes[id.0 as usize].children.is_none()
-                && !self.leaf_can_split(id.0)
-        };
-        unsplittable(r) && unsplittable(s)
+    /// Whether a node is a leaf that cannot be split further.
+    fn unsplittable(&self, id: NodeId) -> bool {
+        id.cluster().is_none()
+            && self.mesh.nodes[id.0 as usize].children.is_none()
+            && !self.leaf_can_split(id.0)
     }
 
     /// The link from `s` to `r`, or `None` when it provably carries nothing.
@@ -324,12 +321,13 @@ impl View<'_> {
             mut spread,
             partial,
             rays,
+            toward,
         } = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
             (r, &rs),
             (s, &ss),
-            self.fine(r, s),
+            (self.unsplittable(r), self.unsplittable(s)),
         );
         if spread <= 0.0 && values.iter().all(|v| *v <= 0.0) {
             if !straddles(&rs, &ss) {
@@ -339,7 +337,7 @@ impl View<'_> {
             // source: the oracle splits it if the source carries light.
             spread = 1.0;
         }
-        Some((Link::new(r, s, values, spread, partial), rays))
+        Some((Link::new(r, s, values, spread, partial, toward), rays))
     }
 }
 
