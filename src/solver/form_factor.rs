@@ -121,6 +121,17 @@ fn far_field(rel: &[Vec3], n: Vec3, ratio: f32) -> Option<f32> {
     if rel.len() < 3 || rel.iter().any(|r| n.dot(*r) < 0.0) {
         return None;
     }
+    // Cheap rejection first (most calls are near): the bounding radius r is at least half
+    // the longest span e from the first vertex, and the centroid's distance d at most
+    // |R_0| + r, so r < ratio · d needs e / 2 < ratio · |R_0| / (1 − ratio).
+    let span2 = rel[1..]
+        .iter()
+        .map(|r| (*r - rel[0]).length_squared())
+        .fold(0.0, f32::max);
+    let bound = ratio / (1.0 - ratio);
+    if span2 * 0.25 >= bound * bound * rel[0].length_squared() {
+        return None;
+    }
     // Vector area and area centroid by a fan from the first vertex.
     let (mut area, mut moment, mut total) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
     for k in 1..rel.len() - 1 {

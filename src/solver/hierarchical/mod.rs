@@ -85,27 +85,21 @@ pub(super) struct Link {
 }
 
 impl Link {
-    pub fn new(
-        receiver: NodeId,
-        source: NodeId,
-        values: [f32; 3],
-        spread: f32,
-        partial: bool,
-        toward: [f32; 2],
-    ) -> Link {
-        let mut at = values.map(f32::abs);
-        if partial {
+    fn new(receiver: NodeId, source: NodeId, t: &transfer::Transfer) -> Link {
+        // The sign bit of the first value carries whether a shadow boundary crosses the
+        // link (-0.0 where the value is 0).
+        let mut at = t.values.map(f32::abs);
+        if t.partial {
             at[0] = -at[0];
-        }
-        if partial && at[0] == 0.0 {
-            at[0] = -0.0;
         }
         Link {
             receiver,
             source,
             at,
-            spread,
-            toward: toward.map(|w| (w.clamp(0.0, 1.0) * 65535.0).round() as u16),
+            spread: t.spread,
+            toward: t
+                .toward
+                .map(|w| (w.clamp(0.0, 1.0) * 65535.0).round() as u16),
         }
     }
     /// The barycentric weights of the source's corners at [`Link::toward`].

@@ -22,7 +22,7 @@
 //! in parallel) until no link needs it, so one round refines as deep as the current
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
 
-use super::transfer::{self, Shape, Transfer};
+use super::transfer::{self, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
 use crate::mesh::Mesh;
@@ -316,28 +316,22 @@ impl View<'_> {
             return None; // a plane does not see itself
         }
         let (rs, ss) = (self.shape(r), self.shape(s));
-        let Transfer {
-            values,
-            mut spread,
-            partial,
-            rays,
-            toward,
-        } = transfer::evaluate(
+        let mut t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
             (r, &rs),
             (s, &ss),
             (self.unsplittable(r), self.unsplittable(s)),
         );
-        if spread <= 0.0 && values.iter().all(|v| *v <= 0.0) {
+        if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
             if !straddles(&rs, &ss) {
                 return None;
             }
             // The sample points see nothing, but part of the receiver faces part of the
             // source: the oracle splits it if the source carries light.
-            spread = 1.0;
+            t.spread = 1.0;
         }
-        Some((Link::new(r, s, values, spread, partial, toward), rays))
+        Some((Link::new(r, s, &t), t.rays))
     }
 }
 
