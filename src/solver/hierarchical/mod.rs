@@ -68,7 +68,7 @@ impl NodeId {
     }
 }
 
-/// One link: 28 bytes, no heap allocation.
+/// One link: 40 bytes, no heap allocation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Link {
     pub receiver: NodeId,
@@ -82,6 +82,10 @@ pub(super) struct Link {
     /// Where on a surface source the receiver's light comes from: the barycentric weights
     /// of its corners 1 and 2 in units of 1/65535 (see `transfer::kernel_centroid`).
     toward: [u16; 2],
+    /// What the linear transfer misses near the receiver's corners per unit radiosity of
+    /// the source (`transfer::Transfer::miss`), for the oracle's check of a receiver's
+    /// links together.
+    pub miss: [f32; 3],
 }
 
 impl Link {
@@ -100,6 +104,7 @@ impl Link {
             toward: t
                 .toward
                 .map(|w| (w.clamp(0.0, 1.0) * 65535.0).round() as u16),
+            miss: t.miss,
         }
     }
     /// The barycentric weights of the source's corners at [`Link::toward`].

@@ -92,6 +92,10 @@ pub(super) struct Transfer {
     pub rays: u32,
     /// Where on a surface source the receiver's light comes from (see [`kernel_centroid`]).
     pub toward: [f32; 2],
+    /// What the linear transfer misses per unit radiosity of the source 90 % of the way
+    /// from the receiver's centroid to each corner: the exact unoccluded form factor there
+    /// times the link's visible fraction, less the linear function (zero for clusters).
+    pub miss: [f32; 3],
 }
 
 /// The kernel's variation over a link's ends with a cluster: the bound A_s / (π d²) of any
@@ -176,6 +180,7 @@ fn surface_to_surface(
             partial: false,
             rays: 0,
             toward: CENTROID,
+            miss: [0.0; 3],
         };
     }
     let skip = [rt, st];
@@ -224,19 +229,46 @@ fn surface_to_surface(
     let fc = front_form_factor(c, rn, sv, sn);
     let mean_visible = (visible[0] + visible[1] + visible[2]) / 3.0;
     let partial = vhi > vlo;
+    let unoccluded = (f[0] + f[1] + f[2]) / 3.0;
+    let visible = (mean / unoccluded).min(1.0);
+    let corners = values.map(|v| 2.0 * v - mean);
+    let miss = std::array::from_fn(|k| {
+        // The linear function at 90 % towards corner k: 0.9 of corner k's value plus
+        // the centroid's share of all three.
+        let linear = corners[k] * (0.1 / 3.0 + 0.9)
+            + (corners[(k + 1) % 3] + corners[(k + 2) % 3]) * (0.1 / 3.0);
+        let x = c + (rv[k] - c) * 0.9;
+        front_form_factor(x, rn, sv, sn) * visible - linear
+    });
     Transfer {
+        miss,
         values,
         spread: 4.0 * (fc * mean_visible - mean).abs()
             + 0.25 * (vhi_values - lo)
             + if partial { mean } else { 0.0 },
         partial,
         rays,
-        toward: if final_source {
+        toward: if final_source || radius(sv) < NEAR_SOURCE * (centroid(sv) - c).length() {
             CENTROID
         } else {
             kernel_centroid(c, rn, sv)
         },
     }
+}
+
+/// A source whose bounding radius is below this fraction of its distance sends from its
+/// centroid: the kernel then varies by under about 10 % across it, and its kernel-weighted
+/// centroid moves from the centroid by under a twentieth of its radius, which changes the
+/// light its linear fit sends by under a twentieth of its variation.
+const NEAR_SOURCE: f32 = 0.05;
+
+fn centroid(v: &[Vec3; 3]) -> Vec3 {
+    (v[0] + v[1] + v[2]) / 3.0
+}
+
+fn radius(v: &[Vec3; 3]) -> f32 {
+    let c = centroid(v);
+    v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max)
 }
 
 /// The barycentric weights of corners 1 and 2 of a triangle's centroid.
@@ -340,6 +372,7 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
             partial: false,
             rays: 0,
             toward: CENTROID,
+            miss: [0.0; 3],
         };
     }
     let from = sample_points(r, eps, seed, cs);
@@ -354,6 +387,7 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
         rays: SAMPLES as u32,
         // Cluster ends are far apart, where the kernel barely varies over the source.
         toward: CENTROID,
+        miss: [0.0; 3],
     }
 }
 
