@@ -10,9 +10,9 @@
 //! where R_k are the vectors from the receiving point to the polygon's vertices and γ_k the
 //! angle between R_k and R_{k+1}, times the visibility of the patch from the receiver: the
 //! patch is cut into k² congruent strata and one shadow ray goes to a jittered point in
-//! each; where the rays disagree, each stratum's transmittance is weighted by its own exact
-//! form factor (so visibility is weighted by the kernel, as the definition of F requires,
-//! and the unoccluded parts stay exact). The polygon is first clipped to
+//! each; where the rays disagree, each stratum's transmittance is weighted by its own form
+//! factor (so visibility is weighted by the kernel, as the definition of F requires, and
+//! the unoccluded parts stay exact; [`strata_visibility`], which every method shares). The polygon is first clipped to
 //! the receiver's upper hemisphere, so the value is exact for any unoccluded configuration,
 //! never exceeds 1 and tends to 0 (not infinity) as surfaces touch: a receiver can never get
 //! more than the shooter sends. The shadow-ray count grows with the unoccluded form factor
@@ -44,7 +44,7 @@ pub struct FormFactorSettings {
     pub min_rays: u32,
     /// Shadow rays for a pair whose first rays disagree (a penumbra or a partly hidden
     /// patch): the pair is sampled again with this many strata, each weighted by its own
-    /// exact form factor.
+    /// form factor.
     pub penumbra_rays: u32,
 }
 
@@ -312,10 +312,10 @@ pub fn element_to_patch(
     }
     let seed = hash(element_seed(e) ^ patch as u64);
     // One shadow ray per stratum. Where the rays disagree, the pair is sampled again with
-    // `penumbra_rays` strata, each weighted by its own exact form factor (see
+    // `penumbra_rays` strata, each weighted by its own form factor (see
     // [`strata_visibility`]).
     let (at, source) = ((x, e.normal), (&p.verts, p.normal));
-    let first = strata_visibility(bvh, at, source, (eps, skip), k, seed);
+    let first = StrataRays::cast(bvh, at, source, (eps, skip), k, seed);
     if first.lo == first.hi {
         return (f * first.lo, samples);
     }
@@ -332,7 +332,7 @@ pub fn element_to_patch(
         let second = strata_visibility(bvh, at, source, (eps, skip), kp, hash(seed));
         (f * second.fraction, samples + kp * kp)
     } else {
-        (f * first.fraction, samples)
+        (f * first.fraction(x, e.normal, &p.verts), samples)
     }
 }
 
@@ -350,12 +350,12 @@ pub(in crate::solver) struct StrataVisibility {
 /// (rays leave from `x` lifted by `eps` along `n`): the triangle is cut into `k²`
 /// congruent strata ([`stratum`]), one shadow ray goes to a jittered point of each (lifted
 /// off the source along its normal `sn`), and each ray's transmittance T_s is weighted by
-/// its stratum's form factor F_s ([`form_factor_weight`]): Σ F_s T_s / Σ F_s. This is visibility weighted by
-/// the kernel, as the definition of the form factor requires. Weighted by area instead,
-/// a large, near, partly hidden source is misjudged whenever what hides it lies where
-/// the kernel is small: from a ceiling, the floor straight below counts more than the
-/// floor behind a block, and area weights made the Cornell ceiling's irradiance 2 % too
-/// low. The weights cost nothing where the rays agree. `k` is at most 16.
+/// its stratum's form factor F_s ([`form_factor_weight`]): Σ F_s T_s / Σ F_s. This is
+/// visibility weighted by the kernel, as the definition of the form factor requires.
+/// Weighted by area instead, a large, near, partly hidden source is misjudged whenever
+/// what hides it lies where the kernel is small (area weights made the hierarchical
+/// links to the Cornell blocks' faces 4 % short). The weights cost nothing where the rays
+/// agree. `k` is at most 16.
 pub(in crate::solver) fn strata_visibility(
     bvh: &Bvh,
     (x, n): (Vec3, Vec3),
@@ -364,37 +364,68 @@ pub(in crate::solver) fn strata_visibility(
     k: u32,
     seed: u64,
 ) -> StrataVisibility {
-    let k = k.clamp(1, 16);
-    let from = x + n * eps;
-    let mut through = [0.0f32; MAX_SAMPLES];
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for s in 0..k * k {
-        let y = stratified_point(source, k, s, seed) + sn * eps;
-        let t = bvh.transmittance(from, y, skip);
-        through[s as usize] = t;
-        lo = lo.min(t);
-        hi = hi.max(t);
+    let rays = StrataRays::cast(bvh, (x, n), (source, sn), (eps, skip), k, seed);
+    StrataVisibility {
+        fraction: rays.fraction(x, n, source),
+        lo: rays.lo,
+        hi: rays.hi,
     }
-    if hi == lo {
-        return StrataVisibility {
-            fraction: lo,
-            lo,
-            hi,
+}
+
+/// The shadow rays of [`strata_visibility`], before they are weighted.
+struct StrataRays {
+    k: u32,
+    through: [f32; MAX_SAMPLES],
+    lo: f32,
+    hi: f32,
+}
+
+impl StrataRays {
+    fn cast(
+        bvh: &Bvh,
+        (x, n): (Vec3, Vec3),
+        (source, sn): (&[Vec3; 3], Vec3),
+        (eps, skip): (f32, [u32; 2]),
+        k: u32,
+        seed: u64,
+    ) -> StrataRays {
+        let k = k.clamp(1, 16);
+        let from = x + n * eps;
+        let mut rays = StrataRays {
+            k,
+            through: [0.0; MAX_SAMPLES],
+            lo: f32::INFINITY,
+            hi: f32::NEG_INFINITY,
         };
+        for s in 0..k * k {
+            let y = stratified_point(source, k, s, seed) + sn * eps;
+            let t = bvh.transmittance(from, y, skip);
+            rays.through[s as usize] = t;
+            rays.lo = rays.lo.min(t);
+            rays.hi = rays.hi.max(t);
+        }
+        rays
     }
-    let (mut seen, mut total) = (0.0f32, 0.0f32);
-    for s in 0..k * k {
-        let f = form_factor_weight(x, n, &stratum(source, k, s));
-        seen += f * through[s as usize];
-        total += f;
+
+    /// Σ F_s T_s / Σ F_s (the common transmittance where every ray agrees).
+    fn fraction(&self, x: Vec3, n: Vec3, source: &[Vec3; 3]) -> f32 {
+        if self.hi == self.lo {
+            return self.lo;
+        }
+        let strata = (self.k * self.k) as usize;
+        let (mut seen, mut total) = (0.0f32, 0.0f32);
+        for (s, t) in self.through[..strata].iter().enumerate() {
+            let f = form_factor_weight(x, n, &stratum(source, self.k, s as u32));
+            seen += f * t;
+            total += f;
+        }
+        if total > 0.0 {
+            (seen / total).clamp(0.0, 1.0)
+        } else {
+            // Every stratum below the horizon: nothing to weight by but the rays' mean.
+            self.through[..strata].iter().sum::<f32>() / strata as f32
+        }
     }
-    let fraction = if total > 0.0 {
-        (seen / total).clamp(0.0, 1.0)
-    } else {
-        // Every stratum below the horizon but the ray's mean: nothing to weight by.
-        through[..(k * k) as usize].iter().sum::<f32>() / (k * k) as f32
-    };
-    StrataVisibility { fraction, lo, hi }
 }
 
 /// The most strata [`element_to_patch`] samples (`max_rays` is capped to this).

@@ -10,8 +10,8 @@
 //!   front) at the three points of the degree-2 triangle rule (barycentric (2/3, 1/6, 1/6)
 //!   and permutations; Strang & Fix), each times the visible fraction of the source seen
 //!   from it (shadow rays to stratified points of the source, each weighted by its
-//!   stratum's form factor: `form_factor::strata_visibility`). The points lie halfway between the centroid and the
-//!   corners; the receiver gets the linear function through them, and the link's `spread`
+//!   stratum's form factor: `form_factor::strata_visibility`). The points lie halfway
+//!   between the centroid and the corners; the receiver gets the linear function through them, and the link's `spread`
 //!   is what that function may miss: how far the kernel at the centroid bends away from it,
 //!   plus the form factor where the shadow rays disagree (a shadow boundary crosses it).
 //!   Near a corner or a contact, where the kernel rises faster than three points follow,
@@ -57,7 +57,7 @@ pub(super) enum Shape {
 impl Shape {
     pub fn centre(&self) -> Vec3 {
         match self {
-            Shape::Surface { verts, .. } => (verts[0] + verts[1] + verts[2]) / 3.0,
+            Shape::Surface { verts, .. } => centroid(verts),
             Shape::Cluster { centre, .. } => *centre,
         }
     }
@@ -65,10 +65,7 @@ impl Shape {
     /// Radius of a sphere around [`Shape::centre`] holding the node.
     pub fn radius(&self) -> f32 {
         match self {
-            Shape::Surface { verts, .. } => {
-                let c = self.centre();
-                verts.iter().map(|v| (*v - c).length()).fold(0.0, f32::max)
-            }
+            Shape::Surface { verts, .. } => radius(verts),
             Shape::Cluster { radius, .. } => *radius,
         }
     }
@@ -229,8 +226,9 @@ fn surface_to_surface(
     let fc = front_form_factor(c, rn, sv, sn);
     let mean_visible = (visible[0] + visible[1] + visible[2]) / 3.0;
     let partial = vhi > vlo;
+    // The link's visible fraction as a whole: its transfer over its unoccluded one.
     let unoccluded = (f[0] + f[1] + f[2]) / 3.0;
-    let visible = (mean / unoccluded).min(1.0);
+    let seen = (mean / unoccluded).min(1.0);
     let corners = values.map(|v| 2.0 * v - mean);
     let miss = std::array::from_fn(|k| {
         // The linear function at 90 % towards corner k: 0.9 of corner k's value plus
@@ -238,7 +236,7 @@ fn surface_to_surface(
         let linear = corners[k] * (0.1 / 3.0 + 0.9)
             + (corners[(k + 1) % 3] + corners[(k + 2) % 3]) * (0.1 / 3.0);
         let x = c + (rv[k] - c) * 0.9;
-        front_form_factor(x, rn, sv, sn) * visible - linear
+        front_form_factor(x, rn, sv, sn) * seen - linear
     });
     Transfer {
         miss,
@@ -262,10 +260,12 @@ fn surface_to_surface(
 /// light its linear fit sends by under a twentieth of its variation.
 const NEAR_SOURCE: f32 = 0.05;
 
+/// A triangle's centroid.
 fn centroid(v: &[Vec3; 3]) -> Vec3 {
     (v[0] + v[1] + v[2]) / 3.0
 }
 
+/// The radius of the sphere around a triangle's centroid that holds it.
 fn radius(v: &[Vec3; 3]) -> f32 {
     let c = centroid(v);
     v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max)
@@ -277,9 +277,9 @@ const CENTROID: [f32; 2] = [1.0 / 3.0, 1.0 / 3.0];
 /// The kernel-weighted centroid of source triangle `sv` seen from point `x` with normal
 /// `n`, y* = ∫ K(x, y) y dy / ∫ K(x, y) dy, as the barycentric weights of the source's
 /// corners 1 and 2: from the form factors of its four strata ([`stratum`],
-/// `form_factor_weight`) and their centroids. For a source whose radiosity varies linearly, B(y) = B̄ + g · (y − ȳ),
-/// the light it sends to x is exactly F · B(y*) (∫ K B = F B̄ + g · ∫ K (y − ȳ)), where
-/// its mean B̄ alone gives F · B̄: a wall brighter towards its middle than at its top
+/// `form_factor_weight`) and their centroids. For a source whose radiosity varies
+/// linearly, B(y) = B̄ + g · (y − ȳ), the light it sends to x is exactly F · B(y*)
+/// (∫ K B = F B̄ + g · ∫ K (y − ȳ)), where its mean B̄ alone gives F · B̄: a wall brighter towards its middle than at its top
 /// and bottom sends more light to the ceiling's centre than its mean says, since the
 /// ceiling's centre sees its middle best (the mean made the Cornell ceiling 1.4 % too
 /// dark).
