@@ -243,20 +243,6 @@ pub(crate) fn run_with_progress(
     Ok(outcome)
 }
 
-/// The viewer's solver settings: the command line's, except that with no `--method` the
-/// viewer starts with progressive refinement, whose first picture comes in a frame; the
-/// hierarchical solver shows nothing until its first refinement round is done (seconds
-/// on the Cornell box), and a picture is what the viewer is for. It stays one click away
-/// in the Solver section.
-#[cfg(feature = "viewer")]
-fn viewer_solver_settings(options: &SolveOptions) -> crate::solver::SolverSettings {
-    let mut s = options.solver_settings();
-    if options.method.is_none() {
-        s.method = crate::solver::Method::Progressive;
-    }
-    s
-}
-
 pub(crate) fn prepare(scene: &Scene, options: &SolveOptions, quiet: bool) -> Prepared {
     let prepared = Prepared::new(scene, &options.mesh_settings());
     if !quiet {
@@ -298,7 +284,7 @@ pub fn run(cli: Cli) -> Result<()> {
         } => crate::view::app::run(crate::view::app::Options {
             scene: scene.unwrap_or_else(|| "builtin:cornell".into()),
             mesh: options.mesh_settings(),
-            solver: viewer_solver_settings(&options),
+            solver: options.solver_settings(),
             outside: crate::scene::Outside {
                 sky: options.lights.sky,
                 sun: options.lights.sun,

@@ -40,6 +40,44 @@ pub(in crate::solver) struct Cluster {
     pub parent: u32,
     /// Patches whose centroids stand for the cluster in visibility tests.
     pub samples: [u32; SAMPLES],
+    /// The bounding box of its surfaces.
+    pub lo: Vec3,
+    pub hi: Vec3,
+    /// Which way its surfaces face (see [`Facing`]).
+    pub facing: Facing,
+}
+
+/// A cone holding the normals of a set of single-sided surfaces, and where they lie along
+/// its axis: every surface's normal n has n · axis ≥ `cos`, and every point p of them
+/// axis · p ≥ `low`. With `cos` ≤ 0 the surfaces face every way and the cone says nothing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(in crate::solver) struct Facing {
+    pub axis: Vec3,
+    pub cos: f32,
+    pub low: f32,
+}
+
+impl Facing {
+    /// No surface of these sees, or is seen from, any point whose largest projection on
+    /// the axis is `ahead` (the other end's extent along it), within distance `reach` of
+    /// every surface point, up to `tol`: for a surface point p with normal n and a point x,
+    /// n · (x − p) ≤ n_∥ axis · (x − p) + sin θ |x − p| with n_∥ ∈ [cos θ, 1], so nothing
+    /// passes when that is at most `tol` for the largest axis · (x − p), `ahead − low`.
+    /// A flat set of surfaces (θ = 0) sees nothing behind its plane; two clusters on one
+    /// wall see nothing of each other.
+    pub fn blind_to(&self, ahead: f32, reach: f32, tol: f32) -> bool {
+        if self.cos <= 0.0 {
+            return false;
+        }
+        let along = ahead - self.low;
+        let lead = if along <= 0.0 {
+            self.cos * along
+        } else {
+            along
+        };
+        let sin = (1.0 - self.cos * self.cos).max(0.0).sqrt();
+        lead + sin * reach <= tol
+    }
 }
 
 /// The cluster tree.
@@ -82,6 +120,19 @@ impl Clusters {
             area_vector += patch.normal * patch.area;
             reflectance = reflectance.max(patch.reflectance.max_element());
         }
+        let axis = area_vector.normalize_or_zero();
+        let mut facing = Facing {
+            axis,
+            cos: if axis == Vec3::ZERO { -1.0 } else { 1.0 },
+            low: f32::INFINITY,
+        };
+        for &p in patches.iter() {
+            let patch = &mesh.patches[p as usize];
+            facing.cos = facing.cos.min(patch.normal.dot(axis));
+            for v in patch.verts {
+                facing.low = facing.low.min(axis.dot(v));
+            }
+        }
         let mut samples = [patches[0]; SAMPLES];
         for (k, s) in samples.iter_mut().enumerate() {
             let h = hash((patches.len() as u64) << 8 ^ k as u64 ^ (patches[0] as u64) << 32);
@@ -97,6 +148,9 @@ impl Clusters {
             children: 0..0,
             parent,
             samples,
+            lo,
+            hi,
+            facing,
         });
         let kids: Vec<NodeId> = if patches.len() <= LEAF_PATCHES {
             patches

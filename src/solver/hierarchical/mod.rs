@@ -465,9 +465,14 @@ impl Hierarchy {
             .max(Vec3::ZERO)
     }
 
+    /// The links there are: the solution's, or during a refinement round those it holds.
+    pub fn link_count(&self) -> usize {
+        self.links.len() + self.round.as_ref().map_or(0, oracle::Round::links)
+    }
+
     /// Bytes the links take.
     pub fn link_bytes(&self) -> usize {
-        self.links.len() * std::mem::size_of::<Link>()
+        self.link_count() * std::mem::size_of::<Link>()
     }
 }
 
@@ -483,7 +488,7 @@ impl Solver {
             }
         };
         let result = self.hierarchical_piece(&mut h, cancel);
-        self.stats.links = Some(h.links.len());
+        self.stats.links = Some(h.link_count());
         self.stats.link_bytes = Some(h.link_bytes());
         self.hierarchy = Some(h);
         result
@@ -499,9 +504,8 @@ impl Solver {
             },
             Stage::Sweep => {
                 let change = self.sweep(h);
-                if self.stats.first_solution_seconds.is_none() {
-                    self.stats.first_solution_seconds = Some(h.started.elapsed().as_secs_f64());
-                }
+                h.sweeps += 1;
+                self.note_first_solution(h);
                 self.stats.residual = Some(change);
                 self.stats.iterations += 1;
                 // Jacobi's change per sweep shrinks by about ρ̄ each sweep, so what is left
@@ -540,8 +544,33 @@ impl Solver {
             total += sum3d(b.abs()) * a;
         }
         self.radiosity = new;
-        h.sweeps += 1;
         if total > 0.0 { changed / total } else { 0.0 }
+    }
+
+    /// Records when the first solution of the whole scene was ready.
+    fn note_first_solution(&mut self, h: &Hierarchy) {
+        if self.stats.first_solution_seconds.is_none() {
+            self.stats.first_solution_seconds = Some(h.started.elapsed().as_secs_f64());
+        }
+    }
+
+    /// Streaming: one sweep over the links a first refinement round holds so far, so that
+    /// a whole-scene picture is there long before the round ends (on a large scene the
+    /// round takes minutes). Between two generations, the links kept, the links just made
+    /// and those waiting for a leaf split cover every pair of the scene's surfaces exactly
+    /// once, at the levels refinement has reached: the picture comes from the top levels
+    /// first and sharpens as they refine. Each preview starts from the last one's B, so
+    /// light bounces further with each; the round's own decisions are unchanged (the node
+    /// values the oracle reads are put back), and so is the converged answer, which the
+    /// sweeps after the round reach from a warm start.
+    pub(super) fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
+        let saved = (h.node_b.clone(), h.node_slope.clone(), h.cluster_b.clone());
+        h.links = links;
+        h.links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
+        self.sweep(h);
+        h.links = Vec::new();
+        (h.node_b, h.node_slope, h.cluster_b) = saved;
+        self.note_first_solution(h);
     }
 
     /// Area-weighted mean over the elements of `value(i)`; `None` without area.

@@ -61,6 +61,15 @@ pub(super) struct Round {
     waiting: Vec<Link>,
     leaves: Vec<u32>,
     changed: bool,
+    /// How many links the last preview swept (see `Solver::preview`).
+    previewed: usize,
+}
+
+impl Round {
+    /// The links the round holds: kept, to decide, made in this generation, and waiting.
+    pub fn links(&self) -> usize {
+        self.kept.len() + self.work.len() + self.made.len() + self.waiting.len()
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,6 +101,9 @@ impl View<'_> {
                 Shape::Cluster {
                     centre: c.centre,
                     radius: c.radius,
+                    lo: c.lo,
+                    hi: c.hi,
+                    facing: c.facing,
                     area: c.area,
                     area_vector: c.area_vector,
                     samples: c.samples.map(|p| {
@@ -296,6 +308,9 @@ impl View<'_> {
             return None; // a plane does not see itself
         }
         let (rs, ss) = (self.shape(r), self.shape(s));
+        if transfer::blind(&rs, &ss, self.mesh.epsilon()) {
+            return None;
+        }
         let mut t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
@@ -304,7 +319,8 @@ impl View<'_> {
             (self.unsplittable(r), self.unsplittable(s)),
         );
         if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
-            if !straddles(&rs, &ss) {
+            // A cluster's kernel bound is zero only where nothing can pass.
+            if r.cluster().is_some() || s.cluster().is_some() || !straddles(&rs, &ss) {
                 return None;
             }
             // The sample points see nothing, but part of the receiver faces part of the
@@ -518,6 +534,19 @@ impl Solver {
                 round.pairs = Vec::new();
                 round.next_pair = 0;
                 round.work = std::mem::take(&mut round.made);
+                // Before the first solution, a preview each time the links have doubled:
+                // a few dozen over a round, at a cost of about two sweeps of its end.
+                let cover = round.kept.len() + round.work.len() + round.waiting.len();
+                if h.sweeps == 0 && cover >= 2 * round.previewed.max(1) {
+                    round.previewed = cover;
+                    let links = [&round.kept[..], &round.work, &round.waiting]
+                        .into_iter()
+                        .flatten()
+                        .filter(|l| l.spread.is_finite())
+                        .copied()
+                        .collect();
+                    self.preview(h, links);
+                }
             }
             return Ok(false);
         }

@@ -150,3 +150,62 @@ fn push_pull_hands_the_leaves_the_power_the_nodes_gathered() {
         "pushed {pushed} vs gathered {gathered}"
     );
 }
+
+/// Streaming: before the first refinement round ends, previews over the links it holds
+/// so far light the whole scene, approaching the converged solution from below.
+#[test]
+fn previews_light_the_whole_scene_before_the_first_round_ends() {
+    let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
+    s.settings.step_budget = std::time::Duration::ZERO;
+    let power = |s: &Solver| {
+        s.radiosity
+            .iter()
+            .zip(&s.mesh.elements)
+            .map(|(b, e)| sum3d(*b) * e.area as f64)
+            .sum::<f64>()
+    };
+    // Area of the elements without light.
+    let dark = |s: &Solver| {
+        s.radiosity
+            .iter()
+            .zip(&s.mesh.elements)
+            .filter(|(b, _)| b.max_element() <= 0.0)
+            .map(|(_, e)| e.area as f64)
+            .sum::<f64>()
+    };
+    let mut previews = Vec::new();
+    let mut last_dark = f64::INFINITY;
+    while !s.is_converged() {
+        s.step(crate::cancel::never()).unwrap();
+        if let Some(h) = &s.hierarchy
+            && h.sweeps == 0
+            && s.stats.first_solution_seconds.is_some()
+        {
+            previews.push(power(&s));
+            last_dark = dark(&s);
+        }
+    }
+    let converged = power(&s);
+    assert!(previews.len() > 10, "{} previews", previews.len());
+    // Every surface the converged solution lights is lit: the area left dark is the floor
+    // under the blocks, dark in both (up to 1 % of it: the meshes differ by later splits).
+    let converged_dark = dark(&s);
+    assert!(
+        last_dark <= converged_dark * 1.01,
+        "dark area {last_dark} m² against {converged_dark} m² converged"
+    );
+    // Jacobi sweeps from B = E' through non-negative transfers rise towards their fixed
+    // point, and a preview leaves out the links whose ends overlap (their centre-to-centre
+    // kernel is meaningless): no preview may hold more light than the converged solution,
+    // up to the oracle's ε = 2 % on what the coarser links carry. (Measured: 0.53 of the
+    // converged power, the lamp alone, rising to 0.95.) With the overlapping links
+    // swept too, the seventh preview held 2 % more light than the converged solution
+    // (and single points of the bench 150 times their true value).
+    for (k, p) in previews.iter().enumerate() {
+        assert!(
+            *p <= converged * 1.02,
+            "preview {k}: {p} against {converged}"
+        );
+    }
+    assert!(previews.last().unwrap() >= &(converged * 0.8));
+}

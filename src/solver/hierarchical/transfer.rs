@@ -20,12 +20,16 @@
 //!   [`projected_area`]: exact for a flat cluster, the isotropic A/4 for a closed one): a
 //!   cluster of mean radiosity B emits B·P(ω)/π W/sr towards ω; a receiving cluster's
 //!   factor is the irradiance on a plane facing the source, shared out to its surfaces by
-//!   their orientation when it is pushed down (`Octants`). For a cluster link, `spread` is the conservative bound
-//!   A_s / (π d²) of any transfer between the two bounding spheres d apart (infinite when
-//!   they overlap), so the oracle refines every cluster link that could carry much light.
+//!   their orientation when it is pushed down (`Octants`). For a cluster link, `spread` is
+//!   the range of the unoccluded kernel between any two points of the ends' bounding
+//!   spheres (`ClusterKernel`; infinite when they overlap), plus the whole transfer where
+//!   its shadow rays disagree.
+//! - a pair whose surfaces face away from each other (by the cone of their normals, see
+//!   [`blind`]) gets no link at all: two clusters on one wall, however close, exchange
+//!   nothing, and neither do any of their children.
 
 use super::NodeId;
-use super::clusters::SAMPLES;
+use super::clusters::{Facing, SAMPLES};
 use crate::accel::Bvh;
 use crate::geometry::sampling::{hash, stratified_point, stratum};
 use crate::solver::form_factor::point_to_polygon;
@@ -46,6 +50,10 @@ pub(super) enum Shape {
     Cluster {
         centre: Vec3,
         radius: f32,
+        /// Bounding box.
+        lo: Vec3,
+        hi: Vec3,
+        facing: Facing,
         area: f32,
         /// Σ A_i n_i of the surfaces inside.
         area_vector: Vec3,
@@ -70,11 +78,41 @@ impl Shape {
         }
     }
 
-    fn area(&self) -> f32 {
+    /// Which way the node's surfaces face.
+    fn facing(&self) -> Facing {
         match self {
-            Shape::Surface { area, .. } | Shape::Cluster { area, .. } => *area,
+            Shape::Surface { verts, normal, .. } => Facing {
+                axis: *normal,
+                cos: 1.0,
+                low: verts
+                    .iter()
+                    .map(|v| normal.dot(*v))
+                    .fold(f32::INFINITY, f32::min),
+            },
+            Shape::Cluster { facing, .. } => *facing,
         }
     }
+
+    /// The largest projection of the node onto direction `w`.
+    fn extent_along(&self, w: Vec3) -> f32 {
+        match self {
+            Shape::Surface { verts, .. } => verts
+                .iter()
+                .map(|v| w.dot(*v))
+                .fold(f32::NEG_INFINITY, f32::max),
+            Shape::Cluster { lo, hi, .. } => (w * *lo).max(w * *hi).element_sum(),
+        }
+    }
+}
+
+/// Whether no light can pass between the two nodes, either way, by which way their
+/// surfaces face (see [`Facing::blind_to`]), up to `tol`: then the pair needs no link,
+/// however close the two are (its children's pairs would all be empty too).
+pub(super) fn blind(r: &Shape, s: &Shape, tol: f32) -> bool {
+    let reach = (r.centre() - s.centre()).length() + r.radius() + s.radius();
+    let (fr, fs) = (r.facing(), s.facing());
+    fs.blind_to(r.extent_along(fs.axis), reach, tol)
+        || fr.blind_to(s.extent_along(fr.axis), reach, tol)
 }
 
 /// A link's transfer at the receiver's three quadrature points, whether a shadow boundary
@@ -93,17 +131,6 @@ pub(super) struct Transfer {
     /// from the receiver's centroid to each corner: the exact unoccluded form factor there
     /// times the link's visible fraction, less the linear function (zero for clusters).
     pub miss: [f32; 3],
-}
-
-/// The kernel's variation over a link's ends with a cluster: the bound A_s / (π d²) of any
-/// transfer between two bounding spheres d apart (infinite when they overlap).
-pub(super) fn cluster_bound(r: &Shape, s: &Shape) -> f32 {
-    let gap = (s.centre() - r.centre()).length() - r.radius() - s.radius();
-    if gap > 0.0 {
-        s.area() / (PI * gap * gap)
-    } else {
-        f32::INFINITY
-    }
 }
 
 /// The form factor from point `x` with normal `n` to the source triangle `sv` with normal
@@ -346,44 +373,36 @@ fn sample_points(shape: &Shape, eps: f32, seed: u64, other: Vec3) -> [(Vec3, u32
 fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
     let (cr, cs) = (r.centre(), s.centre());
     let d = (cs - cr).length();
-    let unoccluded = if d <= 0.0 {
-        0.0
-    } else {
-        let towards = (cs - cr) / d;
-        let emitted = match s {
-            // Intensity per unit radiosity towards the receiver: projected area / π.
-            Shape::Surface { normal, area, .. } => area * normal.dot(-towards).max(0.0) / PI,
-            Shape::Cluster {
-                area, area_vector, ..
-            } => projected_area(*area, *area_vector, -towards) / PI,
-        };
-        // A receiving cluster takes the irradiance on a plane facing the source; its
-        // surfaces each take their share by orientation (see `Octants`).
-        let received = match r {
-            Shape::Surface { normal, .. } => normal.dot(towards).max(0.0),
-            Shape::Cluster { .. } => 1.0,
-        };
-        emitted * received / (d * d)
+    let nothing = |spread| Transfer {
+        values: [0.0; 3],
+        spread,
+        partial: false,
+        rays: 0,
+        toward: CENTROID,
+        miss: [0.0; 3],
     };
-    if unoccluded <= 0.0 || !unoccluded.is_finite() {
-        return Transfer {
-            values: [0.0; 3],
-            spread: cluster_bound(r, s),
-            partial: false,
-            rays: 0,
-            toward: CENTROID,
-            miss: [0.0; 3],
-        };
+    if d <= 0.0 {
+        return nothing(f32::INFINITY);
+    }
+    let towards = (cs - cr) / d;
+    let kernel = ClusterKernel::new(r, s, d, towards);
+    let spread = kernel.hi - kernel.lo;
+    if kernel.centre <= 0.0 || !kernel.centre.is_finite() {
+        return nothing(spread);
     }
     let from = sample_points(r, eps, seed, cs);
     let to = sample_points(s, eps, hash(seed), cr);
-    let through: f32 = (0..SAMPLES)
-        .map(|i| bvh.transmittance(from[i].0, to[i].0, [from[i].1, to[i].1]))
-        .sum();
+    let through: [f32; SAMPLES] =
+        std::array::from_fn(|i| bvh.transmittance(from[i].0, to[i].0, [from[i].1, to[i].1]));
+    let seen = through.iter().sum::<f32>() / SAMPLES as f32;
+    let partial = through.iter().any(|t| *t != through[0]);
+    let value = kernel.centre * seen;
     Transfer {
-        values: [unoccluded * through / SAMPLES as f32; 3],
-        spread: cluster_bound(r, s),
-        partial: false,
+        values: [value; 3],
+        // Where the rays disagree, a shadow boundary crosses the link and the whole of
+        // the light it carries is uncertain (as for surface links).
+        spread: spread + if partial { kernel.centre } else { 0.0 },
+        partial,
         rays: SAMPLES as u32,
         // Cluster ends are far apart, where the kernel barely varies over the source.
         toward: CENTROID,
@@ -391,9 +410,282 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
     }
 }
 
+/// The unoccluded transfer of a link with a cluster at either end, per unit radiosity of
+/// the source, and the range it takes between any two points of the ends' bounding
+/// spheres.
+///
+/// At the centres, the transfer is I_s(ω) · c_r(ω) / d²: the source's intensity per unit
+/// radiosity towards the receiver, its projected area P(ω) / π (Sillion 1995; a surface's
+/// A cos θ_s / π), times how much of it a receiving surface takes (cos θ_r; a cluster takes
+/// the irradiance on a plane facing the source and shares it out by orientation,
+/// `Octants`). Between points of spheres of radii r_r and r_s whose centres are d apart,
+/// the distance lies in [d − r_r − r_s, d + r_r + r_s] and the direction within
+/// α = asin((r_r + r_s) / d) of the centres' (Holzschuch & Sillion 1998 bound the kernel the
+/// same way): each cosine moves by at most α (|d cos/dθ| ≤ 1), a cluster's oriented area
+/// |a| by at most |a| α. The range [lo, hi] is what the oracle judges a cluster link by:
+/// its kernel's variation, so a far link carries a transfer known to a few per cent of
+/// itself, where the bound of the whole transfer (A_s / (π gap²)) held every link near a
+/// cluster to its full value.
+struct ClusterKernel {
+    centre: f32,
+    lo: f32,
+    hi: f32,
+}
+
+impl ClusterKernel {
+    fn new(r: &Shape, s: &Shape, d: f32, towards: Vec3) -> ClusterKernel {
+        let reach = r.radius() + s.radius();
+        let gap = d - reach;
+        let alpha = (reach / d).min(1.0).asin();
+        // (at the centres, least, most) for the source's intensity and the receiver's share.
+        let emitted = match s {
+            Shape::Surface { normal, area, .. } => {
+                let c = normal.dot(-towards);
+                [
+                    c.max(0.0),
+                    (c - alpha).max(0.0),
+                    (c + alpha).clamp(0.0, 1.0),
+                ]
+                .map(|c| c * area)
+            }
+            Shape::Cluster {
+                area, area_vector, ..
+            } => {
+                let oriented = area_vector.length();
+                let centre = projected_area(*area, *area_vector, -towards);
+                [
+                    centre,
+                    (centre - oriented * alpha).max(0.0),
+                    (centre + oriented * alpha).min(*area),
+                ]
+            }
+        }
+        .map(|p| p / PI);
+        let received = match r {
+            Shape::Surface { normal, .. } => {
+                let c = normal.dot(towards);
+                [
+                    c.max(0.0),
+                    (c - alpha).max(0.0),
+                    (c + alpha).clamp(0.0, 1.0),
+                ]
+            }
+            Shape::Cluster { .. } => [1.0; 3],
+        };
+        let near = if gap > 0.0 { gap * gap } else { 0.0 };
+        let far = (d + reach) * (d + reach);
+        ClusterKernel {
+            centre: emitted[0] * received[0] / (d * d),
+            lo: emitted[1] * received[1] / far,
+            hi: if near > 0.0 {
+                emitted[2] * received[2] / near
+            } else {
+                f32::INFINITY
+            },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::geometry::sampling::hash;
+
+    /// A deterministic number in [0, 1) from `k`.
+    fn uniform(k: u64) -> f32 {
+        (hash(k) >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// A deterministic unit vector from `k` (rejection sampling in the unit ball).
+    fn unit(k: u64) -> Vec3 {
+        (0..)
+            .map(|i: u64| {
+                let k = hash(k ^ i << 48);
+                Vec3::new(uniform(k), uniform(k ^ 7), uniform(k ^ 13)) * 2.0 - Vec3::ONE
+            })
+            .find(|v| v.length_squared() > 1e-3 && v.length_squared() <= 1.0)
+            .map_or(Vec3::Z, Vec3::normalize)
+    }
+
+    fn point_in_sphere(centre: Vec3, radius: f32, k: u64) -> Vec3 {
+        centre + unit(k) * radius * uniform(k ^ 99).cbrt()
+    }
+
+    /// Brute force: the cluster model's kernel between any two points of the ends'
+    /// spheres lies within the range `ClusterKernel` gives, for a receiving surface or
+    /// cluster and a sending surface or cluster, near (gap a tenth of the radii) and far.
+    #[test]
+    fn the_cluster_kernel_range_holds_every_pair_of_points_in_the_spheres() {
+        for case in 0..400u64 {
+            let seed = case * 1_000;
+            let rn = unit(seed + 1);
+            let rv = [Vec3::ZERO, Vec3::X * 0.4, Vec3::Y * 0.3].map(|v| v + unit(seed + 2) * 0.05);
+            // A receiver in the plane with normal rn: rotate the triangle into it.
+            let (t, b) = crate::geometry::orthonormal_basis(rn);
+            let rv = rv.map(|v| t * v.x + b * v.y);
+            let receiving_cluster = case % 2 == 0;
+            let r = if receiving_cluster {
+                Shape::Cluster {
+                    centre: Vec3::ZERO,
+                    radius: 0.5,
+                    lo: Vec3::splat(-0.3),
+                    hi: Vec3::splat(0.3),
+                    facing: Facing {
+                        axis: Vec3::Z,
+                        cos: -1.0,
+                        low: 0.0,
+                    },
+                    area: 1.0,
+                    area_vector: Vec3::ZERO,
+                    samples: [(Vec3::ZERO, Vec3::Z, 0); SAMPLES],
+                }
+            } else {
+                Shape::Surface {
+                    verts: rv,
+                    normal: rn,
+                    area: crate::geometry::triangle_area(&rv),
+                    triangle: 0,
+                }
+            };
+            let reach = r.radius() + 0.6;
+            let d = reach * (1.1 + 20.0 * uniform(seed + 3).powi(2));
+            let cs = unit(seed + 4) * d + r.centre();
+            let a = unit(seed + 5) * (0.2 + 0.8 * uniform(seed + 6)) * 1.5;
+            let s = if case % 3 == 0 {
+                let sn = unit(seed + 7);
+                let (t, b) = crate::geometry::orthonormal_basis(sn);
+                let sv = [Vec3::ZERO, t * 0.5, b * 0.5].map(|v| v + cs - (t + b) * 0.5 / 3.0);
+                Shape::Surface {
+                    verts: sv,
+                    normal: sn,
+                    area: crate::geometry::triangle_area(&sv),
+                    triangle: 1,
+                }
+            } else {
+                Shape::Cluster {
+                    centre: cs,
+                    radius: 0.6,
+                    lo: cs - Vec3::splat(0.3),
+                    hi: cs + Vec3::splat(0.3),
+                    facing: Facing {
+                        axis: Vec3::Z,
+                        cos: -1.0,
+                        low: 0.0,
+                    },
+                    area: 1.5,
+                    area_vector: a,
+                    samples: [(cs, Vec3::Z, 1); SAMPLES],
+                }
+            };
+            let (cr, cs) = (r.centre(), s.centre());
+            let k = ClusterKernel::new(&r, &s, (cs - cr).length(), (cs - cr).normalize());
+            assert!(
+                k.lo <= k.centre && k.centre <= k.hi,
+                "case {case}: centre outside its range"
+            );
+            for j in 0..200u64 {
+                let x = match &r {
+                    Shape::Surface { verts, .. } => stratified_point(verts, 1, 0, hash(seed ^ j)),
+                    Shape::Cluster { centre, radius, .. } => {
+                        point_in_sphere(*centre, *radius, seed ^ j ^ 55)
+                    }
+                };
+                let y = match &s {
+                    Shape::Surface { verts, .. } => {
+                        stratified_point(verts, 1, 0, hash(seed ^ j ^ 77))
+                    }
+                    Shape::Cluster { centre, radius, .. } => {
+                        point_in_sphere(*centre, *radius, seed ^ j ^ 66)
+                    }
+                };
+                let w = (y - x).normalize();
+                let emitted = match &s {
+                    Shape::Surface { normal, area, .. } => area * normal.dot(-w).max(0.0),
+                    Shape::Cluster {
+                        area, area_vector, ..
+                    } => projected_area(*area, *area_vector, -w),
+                } / PI;
+                let received = match &r {
+                    Shape::Surface { normal, .. } => normal.dot(w).max(0.0),
+                    Shape::Cluster { .. } => 1.0,
+                };
+                let kernel = emitted * received / (y - x).length_squared();
+                // f32 rounding of the range's own arithmetic: a few ulps.
+                let slack = 1e-5 * k.hi.max(kernel);
+                assert!(
+                    k.lo - slack <= kernel && kernel <= k.hi + slack,
+                    "case {case}, pair {j}: kernel {kernel} outside [{}, {}]",
+                    k.lo,
+                    k.hi
+                );
+            }
+        }
+    }
+
+    /// Brute force: where a cone of normals says its surfaces see nothing of a box, no
+    /// surface point p with a normal n inside the cone (at or above `low` along the axis)
+    /// has any point x of the box in front of it, n · (x − p) ≤ tol; and two flat pieces
+    /// of one wall are blind to each other, two walls meeting at a corner are not.
+    #[test]
+    fn a_blind_cone_sees_nothing_of_the_other_end() {
+        let mut blind_cases = 0;
+        for case in 0..2_000u64 {
+            let axis = unit(case * 31 + 1);
+            let cos = 1.0 - uniform(case * 31 + 2).powi(3) * 0.3;
+            let low = uniform(case * 31 + 3) - 0.5;
+            let facing = Facing { axis, cos, low };
+            let ahead = low - 0.5 + uniform(case * 31 + 4) * 0.6;
+            let reach = 0.5 + uniform(case * 31 + 5) * 2.0;
+            if !facing.blind_to(ahead, reach, 0.0) {
+                continue;
+            }
+            blind_cases += 1;
+            for j in 0..100u64 {
+                let k = case * 1_000 + j;
+                // A normal inside the cone.
+                let (t, b) = crate::geometry::orthonormal_basis(axis);
+                let sin = (1.0 - cos * cos).sqrt() * uniform(k + 1);
+                let phi = uniform(k + 2) * std::f32::consts::TAU;
+                let n = (axis * (1.0 - sin * sin).sqrt() + (t * phi.cos() + b * phi.sin()) * sin)
+                    .normalize();
+                // p at or above `low`, x at or below `ahead`, within `reach` of each other.
+                let p = axis * (low + uniform(k + 3) * 0.2)
+                    + (t * (uniform(k + 4) - 0.5) + b * (uniform(k + 5) - 0.5)) * 0.5;
+                let mut x = p + unit(k + 6) * reach * uniform(k + 7);
+                let along = axis.dot(x);
+                if along > ahead {
+                    x -= axis * (along - ahead);
+                }
+                if (x - p).length() > reach {
+                    continue;
+                }
+                assert!(
+                    n.dot(x - p) <= 1e-5,
+                    "case {case}: a surface point sees the box"
+                );
+            }
+        }
+        assert!(
+            blind_cases > 100,
+            "too few blind cases to test: {blind_cases}"
+        );
+        let square = |origin: Vec3, u: Vec3, v: Vec3| {
+            let verts = [origin, origin + u, origin + v];
+            let normal = u.cross(v).normalize();
+            Shape::Surface {
+                verts,
+                normal,
+                area: crate::geometry::triangle_area(&verts),
+                triangle: 0,
+            }
+        };
+        let floor_a = square(Vec3::ZERO, Vec3::X, Vec3::NEG_Z);
+        let floor_b = square(Vec3::X, Vec3::X, Vec3::NEG_Z);
+        let wall = square(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y);
+        assert!(blind(&floor_a, &floor_b, 1e-6));
+        assert!(!blind(&floor_a, &wall, 1e-6));
+    }
 
     #[test]
     fn quadrature_points_lie_halfway_between_centroid_and_corners() {
