@@ -15,7 +15,9 @@ use crate::mesh::{Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
 use crate::scene::{Image, Material, OpenError, Outside, Scene};
 use crate::solver::gather::{GatherSettings, Gatherer};
-use crate::solver::{PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome};
+use crate::solver::{
+    ElementLinks, PatchEdit, Solver, SolverError, SolverSettings, Stats, StepOutcome,
+};
 use glam::{DMat4, Vec3};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
@@ -78,6 +80,12 @@ pub enum Command {
     /// Prepare the current solution for the final gather at points (answered by
     /// `Event::Gatherer`).
     Gather(GatherSettings),
+    /// The links of the element at `point` (the mesh's frame) on the side `normal` faces,
+    /// for the link inspector (answered by `Event::Inspected`).
+    Inspect {
+        point: Vec3,
+        normal: Vec3,
+    },
     Shutdown,
 }
 
@@ -144,6 +152,12 @@ pub enum Event {
         version: u64,
         gatherer: Arc<Gatherer>,
     },
+    /// The links of the element asked about (`None`: the method is not hierarchical, or
+    /// no element faces that way there).
+    Inspected {
+        job: u64,
+        links: Option<ElementLinks>,
+    },
     Failed {
         job: u64,
         error: JobError,
@@ -189,6 +203,7 @@ impl Event {
             | Event::Gatherer { job, .. }
             | Event::Exported { job, .. }
             | Event::Refined { job, .. }
+            | Event::Inspected { job, .. }
             | Event::Failed { job, .. } => *job,
         }
     }
@@ -433,6 +448,16 @@ fn run(
                             version: j.version,
                             gatherer: Arc::new(j.solver.gatherer(settings)),
                         });
+                    }
+                }
+                Command::Inspect { point, normal } => {
+                    if let Some(j) = &mut job {
+                        let links = j
+                            .solver
+                            .mesh()
+                            .locate(point, normal)
+                            .and_then(|(e, _)| j.solver.element_links(e));
+                        send(Event::Inspected { job: j.id, links });
                     }
                 }
                 Command::Export { path, ev, tonemap } => {

@@ -363,6 +363,73 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
     assert_eq!(h.state().display().selected, None);
 }
 
+/// The link inspector: a click on the back wall of the hierarchical solution lists the
+/// links that light the clicked element and draws them over the view. What they carry
+/// adds up to the irradiance H the element's radiosity came from, B = ρ H (the back wall
+/// emits nothing and no external light reaches it).
+#[test]
+fn the_link_inspector_shows_the_links_that_light_a_clicked_element() {
+    let mut options = options("builtin:cornell");
+    options.solver.method = radiosity::solver::Method::Hierarchical;
+    // Coarser than the default (ε = 0.02, an eighth of the element size) so that the
+    // worker's one thread converges in seconds.
+    options.solver.hierarchy.link_error = 0.1;
+    options.solver.hierarchy.min_size = Some(0.1);
+    let mut h = harness(options);
+    assert!(
+        step_until(&mut h, 180.0, |a| a.converged() || a.error().is_some()),
+        "no convergence"
+    );
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+    let r = h.state().viewport_rect().expect("viewport");
+    let before = h.render().expect("render");
+    click(&mut h, r.center());
+    assert!(
+        step_until(&mut h, 10.0, |a| a.inspected().is_some()),
+        "no answer from the worker"
+    );
+    h.step();
+    let inspected = h.state().inspected().unwrap().clone();
+    assert!(
+        inspected.links.len() >= 5,
+        "{} links",
+        inspected.links.len()
+    );
+    assert!(
+        h.query_by_label_contains(&format!("Element {} (level", inspected.element))
+            .is_some(),
+        "the side panel does not name the element"
+    );
+    let after = h.render().expect("render");
+    after
+        .save(screenshots().join("kittest_link_inspector.png"))
+        .unwrap();
+    assert_ne!(after, before, "no links drawn");
+    let (_, radiosity) = h.state().snapshot().unwrap();
+    let material = h.state().selected_material().unwrap();
+    let rho = h.state().materials()[material as usize].reflectance;
+    let b = radiosity[inspected.element as usize];
+    let carried = inspected
+        .links
+        .iter()
+        .fold(Vec3::ZERO, |s, l| s + l.irradiance);
+    let wanted = b / rho;
+    println!(
+        "links {}, carried {carried} against H {wanted}",
+        inspected.links.len()
+    );
+    // The element receives each ancestor's linear H at its own centroid, and the links
+    // report their means over their receivers: the two differ by how much H varies across
+    // the largest receiver (the patch, a quarter of the wall), a few per cent at the wall's
+    // centre; a cluster's share by orientation is at most what its link carries.
+    for c in 0..3 {
+        assert!(
+            (carried[c] - wanted[c]).abs() <= 0.05 * wanted[c],
+            "channel {c}: links carry {carried} against H = B/ρ = {wanted}"
+        );
+    }
+}
+
 #[test]
 fn the_contact_line_switch_meshes_again_without_and_with_cuts() {
     let mut h = harness(options("builtin:cornell"));

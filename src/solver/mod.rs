@@ -39,6 +39,7 @@ mod source_term;
 pub mod stochastic;
 mod types;
 
+pub use hierarchical::{ElementLinks, LinkView};
 pub use irradiance::{irradiance, irradiance_at};
 pub use types::{
     HierarchySettings, MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, PatchEdit, SolverError,

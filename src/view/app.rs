@@ -223,6 +223,11 @@ impl App {
     pub fn selected_object(&self) -> Option<u32> {
         self.session.selected
     }
+    /// The clicked element and the links that light it (the link inspector).
+    pub fn inspected(&self) -> Option<&crate::solver::ElementLinks> {
+        self.session.inspected.as_ref()
+    }
+
     pub fn selected_material(&self) -> Option<u32> {
         self.session.material
     }
@@ -357,6 +362,7 @@ impl App {
                 Event::Gatherer {
                     version, gatherer, ..
                 } => self.session.gatherer = Some((version, gatherer)),
+                Event::Inspected { links, .. } => self.session.inspected = links,
                 Event::Exported { result, .. } => match result {
                     Ok(p) => self.status = format!("exported {}", p.display()),
                     Err(e) => self.session.error = Some(e.to_string()),

@@ -322,6 +322,7 @@ impl App {
             ui.label("Click an object in the view to select it.");
             return;
         };
+        self.links_summary_ui(ui);
         let name = self
             .session
             .objects
@@ -432,6 +433,45 @@ impl App {
                 self.place(object, Placement::default());
             }
         });
+    }
+
+    /// The clicked element as the hierarchy sees it (the link inspector; its links are
+    /// drawn over the view): its level, how many links light it and what they carry, and
+    /// the link whose error estimate is nearest its threshold.
+    fn links_summary_ui(&self, ui: &mut egui::Ui) {
+        let Some(e) = &self.session.inspected else {
+            return;
+        };
+        ui.label(format!("Element {} (level {})", e.element, e.level));
+        if e.links.is_empty() {
+            ui.label("links: being refined");
+            return;
+        }
+        let carried = e
+            .links
+            .iter()
+            .fold(glam::Vec3::ZERO, |s, l| s + l.irradiance);
+        let clusters = e.links.iter().filter(|l| l.from_cluster).count();
+        ui.label(format!(
+            "{} links ({clusters} from clusters), H = {:.3} {:.3} {:.3} W/m²",
+            e.links.len(),
+            carried.x,
+            carried.y,
+            carried.z
+        ));
+        let worst = e
+            .links
+            .iter()
+            .map(|l| (l.error / l.threshold, l))
+            .filter(|(r, _)| r.is_finite())
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((ratio, l)) = worst {
+            ui.label(format!(
+                "largest link error {:.2e} W/m² ({:.0} % of its threshold)",
+                l.error,
+                ratio * 100.0
+            ));
+        }
     }
 
     fn solver_ui(&mut self, ui: &mut egui::Ui) {

@@ -11,8 +11,8 @@ use super::gpu::Uploads;
 use crate::accel::Bvh;
 use crate::mesh::Mesh;
 use crate::scene::{Image, Material};
-use crate::solver::Stats;
 use crate::solver::gather::Gatherer;
+use crate::solver::{ElementLinks, Stats};
 use crate::worker::{Command, ObjectInfo, Source, Stage};
 use glam::Vec3;
 use std::sync::Arc;
@@ -60,6 +60,8 @@ pub(super) struct Session {
     /// The selected object and its material.
     pub(super) selected: Option<u32>,
     pub(super) material: Option<u32>,
+    /// The element under the last click and the links that light it (hierarchical only).
+    pub(super) inspected: Option<ElementLinks>,
     /// The camera has been placed for this scene (once, when its first mesh arrives).
     pub(super) camera_set: bool,
     /// When the current mesh arrived (the timed screenshot counts from it).

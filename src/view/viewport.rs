@@ -1,6 +1,7 @@
 //! The 3D view: camera controls (orbit, pan, zoom, frame all, the starting view), picking
-//! an object by clicking it, and painting the GPU's picture with a stage note while the
-//! scene has no mesh yet.
+//! an object by clicking it (and asking the worker for the clicked element's links, drawn
+//! over the view: the link inspector), and painting the GPU's picture with a stage note
+//! while the scene has no mesh yet.
 
 use super::app::App;
 use super::final_gather::{Key, Pass, REST, VIEW_GATHER_ERROR, colour_image};
@@ -8,6 +9,7 @@ use super::gathered::SurfaceTextures;
 use crate::solver::gather::GatherSettings;
 use crate::worker::{Command, Stage};
 use eframe::egui;
+use glam::Vec3;
 use std::time::{Duration, Instant};
 
 impl App {
@@ -60,6 +62,7 @@ impl App {
             );
         }
         self.final_gather_ui(ui, rect, size);
+        self.links_ui(ui.painter(), rect);
         if self.session.mesh.is_none() {
             ui.painter().text(
                 rect.center(),
@@ -197,13 +200,76 @@ impl App {
         };
         let (o, d) = self.camera.ray(x, y, w, h);
         let hit = bvh.closest_hit(o, d, 0.0, f32::INFINITY, u32::MAX);
+        // The patch of the side the camera sees (a double-sided triangle has two).
         let patch = hit.and_then(|h| {
             let r = mesh.triangle_patches.get(h.triangle as usize)?;
-            (!r.is_empty()).then(|| &mesh.patches[r.start as usize])
+            let sides = &mesh.patches[r.start as usize..r.end as usize];
+            sides
+                .iter()
+                .find(|p| p.normal.dot(d) < 0.0)
+                .or(sides.first())
         });
         s.selected = patch.map(|p| p.object);
         s.material = patch.map(|p| p.material);
+        s.inspected = None;
+        if let (Some(h), Some(p)) = (hit, patch) {
+            self.worker.send(Command::Inspect {
+                point: o + d * h.t,
+                normal: p.normal,
+            });
+        }
         self.display.selected = s.selected;
+    }
+
+    /// The link inspector over the 3D view (`rect`): a line from each link's receiver
+    /// (the clicked element or one of the nodes above it) to its source, coloured by the
+    /// light it carries (its hue, and brighter the more it carries of the most any of
+    /// them carries), and a dot on the element.
+    fn links_ui(&self, painter: &egui::Painter, rect: egui::Rect) {
+        let Some(inspected) = &self.session.inspected else {
+            return;
+        };
+        let view_proj = self.camera.view_proj(rect.width() / rect.height().max(1.0));
+        let screen = |p: Vec3| {
+            let c = view_proj * p.extend(1.0);
+            (c.w > 0.0).then(|| {
+                let n = c.truncate() / c.w;
+                rect.min
+                    + egui::vec2(
+                        (n.x + 1.0) * 0.5 * rect.width(),
+                        (1.0 - n.y) * 0.5 * rect.height(),
+                    )
+            })
+        };
+        let most = inspected
+            .links
+            .iter()
+            .map(|l| l.irradiance.max_element())
+            .fold(0.0f32, f32::max);
+        for l in &inspected.links {
+            let (Some(a), Some(b)) = (screen(l.receiver), screen(l.source)) else {
+                continue;
+            };
+            let peak = l.irradiance.max_element();
+            let strength = if most > 0.0 {
+                (peak / most).sqrt()
+            } else {
+                0.0
+            };
+            let hue = if peak > 0.0 {
+                l.irradiance / peak
+            } else {
+                Vec3::ONE
+            };
+            let [r, g, b8] = (hue * 255.0).to_array().map(|c| c as u8);
+            let alpha = (40.0 + 215.0 * strength) as u8;
+            let colour = egui::Color32::from_rgba_unmultiplied(r, g, b8, alpha);
+            let width = if l.from_cluster { 2.0 } else { 1.0 };
+            painter.line_segment([a, b], egui::Stroke::new(width, colour));
+        }
+        if let Some(c) = screen(inspected.centroid) {
+            painter.circle_filled(c, 4.0, egui::Color32::WHITE);
+        }
     }
 
     /// The starting view of the scene's mesh ([`super::default_camera`]), once per scene.

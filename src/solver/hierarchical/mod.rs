@@ -27,6 +27,7 @@
 //! ids, links are sorted by (receiver, source), and every sum runs in that order.
 
 pub(super) mod clusters;
+mod inspect;
 mod oracle;
 #[cfg(test)]
 mod tests;
@@ -38,6 +39,7 @@ use crate::geometry::closest_point_on_triangle;
 use crate::mesh::Mesh;
 use clusters::Clusters;
 use glam::{DVec3, Vec3};
+pub use inspect::{ElementLinks, LinkView};
 use rayon::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;

@@ -83,6 +83,17 @@ enum Decision {
     Leaf(u32),
 }
 
+/// A link's error estimate, W/m² of B at the receiver: ρ_r · (spread · B_s + factor ·
+/// ΔB_s · min(1, r_s / d)), its kernel and source-variation parts, infinite for ends whose
+/// bounding spheres overlap; and the threshold it is held to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Estimate {
+    pub kernel: f32,
+    pub variation: f32,
+    pub error: f32,
+    pub threshold: f32,
+}
+
 /// What the oracle needs of the hierarchy and the mesh, borrowed once per generation.
 struct View<'a> {
     h: &'a Hierarchy,
@@ -216,10 +227,10 @@ impl View<'_> {
         }
     }
 
-    fn decide(&self, l: &Link) -> Decision {
+    /// The link's error estimate and the threshold it is held to.
+    fn estimate(&self, l: &Link) -> Estimate {
         let rho = self.reflectance(l.receiver);
         let (r, s) = (self.shape(l.receiver), self.shape(l.source));
-        let kernel = self.kernel_error(l);
         // Averaging B over the source errs by ΔB_s times how much the kernel varies across
         // the source, about its radius over the distance (at most 1).
         let d = (r.centre() - s.centre()).length();
@@ -242,11 +253,28 @@ impl View<'_> {
         // Ends whose bounding spheres overlap (a cluster and itself, or two that
         // interpenetrate) have no bound at all: they always split, even before their
         // source carries light, or the light between them would be lost until it did.
+        let kernel = self.kernel_error(l);
         let error = if l.spread.is_infinite() && rho > 0.0 {
             f32::INFINITY
         } else {
             kernel + variation
         };
+        Estimate {
+            kernel,
+            variation,
+            error,
+            threshold,
+        }
+    }
+
+    fn decide(&self, l: &Link) -> Decision {
+        let (r, s) = (self.shape(l.receiver), self.shape(l.source));
+        let Estimate {
+            kernel,
+            variation,
+            error,
+            threshold,
+        } = self.estimate(l);
         if error.is_nan() || error <= threshold {
             return Decision::Keep;
         }
@@ -400,6 +428,19 @@ impl Solver {
             .collect();
         let rays = made.iter().map(|m| m.1 as u64).sum();
         (made.into_iter().map(|m| m.0).collect(), rays)
+    }
+
+    /// The oracle's error estimate of link `l` and the threshold it is held to, as the
+    /// last round judged it.
+    pub(super) fn link_estimate(&self, h: &Hierarchy, l: &Link) -> Estimate {
+        View {
+            h,
+            mesh: &self.mesh,
+            min_size: self.hierarchy_min_size(),
+            threshold: h.threshold,
+            ambient: 0.0,
+        }
+        .estimate(l)
     }
 
     /// The oracle's threshold: ε · B̄ · (1 − ρ̄), with B̄ and ρ̄ the area-weighted means of
