@@ -564,9 +564,9 @@ impl Solver {
     /// first and sharpens as they refine. Each preview starts from the last one's B, so
     /// light bounces further with each. The round's own decisions are unchanged (the node
     /// values the oracle reads are put back); the sweeps after it start warm, so the
-    /// converged answer moves only within their tolerance (on the Cornell box, 0.005 % of
-    /// the links differ after the later rounds, and the errors against the reference not
-    /// at all).
+    /// converged answer moves only within their tolerance (on the Cornell box, 6 links in
+    /// 2.5 M differ after the later rounds, the errors against the reference not at all,
+    /// and the sweeps drop from 21 to 17).
     pub(super) fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
         let saved = (h.node_b.clone(), h.node_slope.clone(), h.cluster_b.clone());
         h.links = links;

@@ -227,10 +227,10 @@ impl View<'_> {
         }
     }
 
-    /// The link's error estimate and the threshold it is held to.
-    fn estimate(&self, l: &Link) -> Estimate {
+    /// The link's error estimate and the threshold it is held to; `r` and `s` are the
+    /// shapes of its receiver and source.
+    fn estimate(&self, l: &Link, r: &Shape, s: &Shape) -> Estimate {
         let rho = self.reflectance(l.receiver);
-        let (r, s) = (self.shape(l.receiver), self.shape(l.source));
         // Averaging B over the source errs by ΔB_s times how much the kernel varies across
         // the source, about its radius over the distance (at most 1).
         let d = (r.centre() - s.centre()).length();
@@ -274,7 +274,7 @@ impl View<'_> {
             variation,
             error,
             threshold,
-        } = self.estimate(l);
+        } = self.estimate(l, &r, &s);
         if error.is_nan() || error <= threshold {
             return Decision::Keep;
         }
@@ -433,14 +433,15 @@ impl Solver {
     /// The oracle's error estimate of link `l` and the threshold it is held to, as the
     /// last round judged it.
     pub(super) fn link_estimate(&self, h: &Hierarchy, l: &Link) -> Estimate {
-        View {
+        let view = View {
             h,
             mesh: &self.mesh,
             min_size: self.hierarchy_min_size(),
             threshold: h.threshold,
             ambient: 0.0,
-        }
-        .estimate(l)
+        };
+        let (r, s) = (view.shape(l.receiver), view.shape(l.source));
+        view.estimate(l, &r, &s)
     }
 
     /// The oracle's threshold: ε · B̄ · (1 − ρ̄), with B̄ and ρ̄ the area-weighted means of
