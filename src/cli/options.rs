@@ -100,6 +100,10 @@ pub struct SolveOptions {
     /// Hierarchical: start from every pair of patches instead of the root cluster.
     #[arg(long)]
     pub no_clustering: bool,
+    /// Hierarchical: about the most links (40 bytes each) the solution may hold; when
+    /// refinement passes it, it stops after the generation under way (the stats say so)
+    #[arg(long, default_value_t = HierarchySettings::default().max_links)]
+    pub max_links: usize,
 }
 
 fn parse_rgb(s: &str) -> Result<Vec3, String> {
@@ -192,6 +196,7 @@ impl SolveOptions {
             link_error: self.link_error,
             clustering: !self.no_clustering,
             min_size: self.min_element_size.filter(|m| *m > 0.0),
+            max_links: self.max_links.max(1),
             ..Default::default()
         };
         s.adaptive = (self.adaptive_threshold > 0.0).then(|| AdaptiveSettings {

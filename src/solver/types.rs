@@ -96,6 +96,10 @@ pub struct HierarchySettings {
     pub min_size: Option<f64>,
     /// Most leaf elements (a memory bound).
     pub max_elements: usize,
+    /// About the most links the hierarchy may hold (a memory bound): when a refinement
+    /// round passes it, refinement stops there for the rest of the solve (the generation
+    /// under way is the last), and the stats say so (`link_budget_reached`).
+    pub max_links: usize,
 }
 
 impl Default for HierarchySettings {
@@ -105,6 +109,7 @@ impl Default for HierarchySettings {
             clustering: true,
             min_size: None,
             max_elements: 2_000_000,
+            max_links: 1 << 24,
         }
     }
 }
@@ -158,6 +163,10 @@ pub struct Stats {
     /// the whole scene.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub first_solution_seconds: Option<f64>,
+    /// Hierarchical: refinement stopped at the link budget (`max_links`) before the
+    /// oracle was satisfied everywhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_budget_reached: Option<bool>,
 }
 
 /// A live material change of one patch (see [`Solver::edit_patches`]).

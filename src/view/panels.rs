@@ -190,9 +190,14 @@ impl App {
             if let (Some(links), Some(bytes)) = (s.links, s.link_bytes) {
                 row("links", links.to_string());
                 row("link memory", format!("{:.1} MB", bytes as f64 / 1e6));
+                let eps = self.solver_settings.hierarchy.link_error;
                 row(
                     "oracle ε",
-                    format!("{}", self.solver_settings.hierarchy.link_error),
+                    if s.link_budget_reached == Some(true) {
+                        format!("{eps} (refinement stopped at the link budget)")
+                    } else {
+                        format!("{eps}")
+                    },
                 );
             }
             if let Some(t) = s.first_solution_seconds {

@@ -32,13 +32,17 @@ pub(in crate::solver) struct Cluster {
     /// Σ A_i n_i over the surfaces below it (its area vector; |a| = A when they are
     /// coplanar and face one way, 0 for a closed surface).
     pub area_vector: Vec3,
+    /// Σ A_i |n_i| (componentwise) over the surfaces below it: what light arriving
+    /// equally from every axis direction reaches (see `Octants::add_around`).
+    pub abs_area: Vec3,
     /// Largest reflectance channel below it (for the refinement oracle).
     pub reflectance: f32,
     /// Children in [`Clusters::children`].
     pub children: Range<u32>,
     /// Parent cluster (`u32::MAX` for the root).
     pub parent: u32,
-    /// Patches whose centroids stand for the cluster in visibility tests.
+    /// Patches that stand for the cluster in visibility tests and near transfers, drawn
+    /// with probability proportional to area (stratified).
     pub samples: [u32; SAMPLES],
     /// The bounding box of its surfaces.
     pub lo: Vec3,
@@ -78,6 +82,26 @@ impl Facing {
         let sin = (1.0 - self.cos * self.cos).max(0.0).sqrt();
         lead + sin * reach <= tol
     }
+}
+
+/// [`SAMPLES`] indices into `areas` drawn with probability proportional to area,
+/// stratified: draw k lands in the k-th of SAMPLES equal shares of the running area, so
+/// each stands for an equal share of the surface (a few large patches are not outvoted by
+/// many small ones, and one covering most of the area is drawn most of the times).
+pub(super) fn draw_by_area(areas: &[f32], seed: u64) -> [usize; SAMPLES] {
+    let mut running = Vec::with_capacity(areas.len());
+    let mut sum = 0.0f64;
+    for a in areas {
+        sum += a.max(0.0) as f64;
+        running.push(sum);
+    }
+    std::array::from_fn(|k| {
+        let h = hash(seed ^ k as u64);
+        let u = (k as f64 + (h >> 11) as f64 / (1u64 << 53) as f64) / SAMPLES as f64;
+        running
+            .partition_point(|&a| a <= u * sum)
+            .min(areas.len().saturating_sub(1))
+    })
 }
 
 /// The cluster tree.
@@ -133,17 +157,24 @@ impl Clusters {
                 facing.low = facing.low.min(axis.dot(v));
             }
         }
-        let mut samples = [patches[0]; SAMPLES];
-        for (k, s) in samples.iter_mut().enumerate() {
-            let h = hash((patches.len() as u64) << 8 ^ k as u64 ^ (patches[0] as u64) << 32);
-            *s = patches[(h % patches.len() as u64) as usize];
+        let mut abs_area = Vec3::ZERO;
+        for &p in patches.iter() {
+            let patch = &mesh.patches[p as usize];
+            abs_area += patch.normal.abs() * patch.area;
         }
+        let areas: Vec<f32> = patches
+            .iter()
+            .map(|&p| mesh.patches[p as usize].area)
+            .collect();
+        let seed = (patches.len() as u64) << 8 ^ (patches[0] as u64) << 32;
+        let samples = draw_by_area(&areas, seed).map(|i| patches[i]);
         let index = self.nodes.len() as u32;
         self.nodes.push(Cluster {
             centre: (lo + hi) * 0.5,
             radius: (hi - lo).length() * 0.5,
             area,
             area_vector,
+            abs_area,
             reflectance,
             children: 0..0,
             parent,
@@ -200,6 +231,41 @@ impl Clusters {
                 });
             }
             self.nodes[c].reflectance = r;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against the distribution it must follow: over many seeds each index is drawn in
+    /// proportion to its area (within four binomial standard errors), and stratification
+    /// puts at least three of four draws on a patch holding 97 % of the area.
+    #[test]
+    fn samples_are_drawn_in_proportion_to_area() {
+        let areas = [0.5f32, 0.05, 0.3, 0.0, 0.15];
+        let total: f32 = areas.iter().sum();
+        let mut counts = [0usize; 5];
+        let seeds = 20_000u64;
+        for seed in 0..seeds {
+            for i in draw_by_area(&areas, seed * 7919) {
+                counts[i] += 1;
+            }
+        }
+        let n = (seeds * SAMPLES as u64) as f64;
+        for (i, (&c, &a)) in counts.iter().zip(&areas).enumerate() {
+            let p = (a / total) as f64;
+            let sigma = (n * p * (1.0 - p)).sqrt().max(1.0);
+            assert!(
+                (c as f64 - n * p).abs() <= 4.0 * sigma,
+                "index {i}: drawn {c} times, expected {:.0}",
+                n * p
+            );
+        }
+        for seed in 0..100 {
+            let drawn = draw_by_area(&[0.97, 0.01, 0.01, 0.01], seed);
+            assert!(drawn.iter().filter(|&&i| i == 0).count() >= 3, "{drawn:?}");
         }
     }
 }

@@ -154,6 +154,12 @@ impl Octants {
             self.0[Self::face(a, w[a] >= 0.0)] += e * w[a].abs();
         }
     }
+    /// Adds `e` to every face: a surface with normal n then takes e · Σ_a |n_a|.
+    fn add_around(&mut self, e: Vec3) {
+        for f in &mut self.0 {
+            *f += e;
+        }
+    }
     fn merge(&mut self, o: &Octants) {
         for k in 0..6 {
             self.0[k] += o.0[k];
@@ -383,11 +389,13 @@ impl Hierarchy {
     /// Gathers H at every receiver over its links (at a surface node's corners; by
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
-        let centre = |id: NodeId| match id.cluster() {
-            Some(c) => self.clusters.nodes[c].centre,
+        // A node's bounding sphere, as `transfer::Shape` has it.
+        let ends = |id: NodeId| match id.cluster() {
+            Some(c) => (self.clusters.nodes[c].centre, self.clusters.nodes[c].radius),
             None => {
                 let v = &mesh.nodes[id.0 as usize].verts;
-                (v[0] + v[1] + v[2]) / 3.0
+                let c = (v[0] + v[1] + v[2]) / 3.0;
+                (c, v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max))
             }
         };
         let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
@@ -397,11 +405,19 @@ impl Hierarchy {
                 let r = group[0].receiver;
                 let mut h = [Vec3::ZERO; 3];
                 let mut o = Octants::default();
-                if r.cluster().is_some() {
-                    let at = centre(r);
+                if let Some(c) = r.cluster() {
+                    let cluster = &self.clusters.nodes[c];
+                    let at = cluster.centre;
                     for l in group {
                         let e = self.source_b(mesh, l) * l.factor();
-                        o.add(e, (centre(l.source) - at).normalize_or_zero());
+                        let (to, reach) = ends(l.source);
+                        if (to - at).length() <= cluster.radius + reach {
+                            // A sampled near link carries the mean irradiance over the
+                            // cluster's surfaces, arriving from every side.
+                            o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                        } else {
+                            o.add(e, (to - at).normalize_or_zero());
+                        }
                     }
                 } else {
                     for l in group {
@@ -492,6 +508,7 @@ impl Solver {
         let result = self.hierarchical_piece(&mut h, cancel);
         self.stats.links = Some(h.link_count());
         self.stats.link_bytes = Some(h.link_bytes());
+        self.stats.link_budget_reached = Some(h.threshold.is_infinite());
         self.hierarchy = Some(h);
         result
     }

@@ -22,7 +22,7 @@
 //! in parallel) until no link needs it, so one round refines as deep as the current
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
 
-use super::transfer::{self, Shape};
+use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
 use crate::mesh::Mesh;
@@ -35,7 +35,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 /// How much stricter the oracle is with links from a cluster (see `View::decide`).
-const CLUSTER_STRICTNESS: f32 = 16.0;
+const CLUSTER_STRICTNESS: f32 = 4.0;
 
 /// A refinement round under way, kept between steps.
 #[derive(Default)]
@@ -102,6 +102,8 @@ struct View<'a> {
     threshold: f32,
     /// The light a source is expected to reflect before any sweep (see `Round::ambient`).
     ambient: f32,
+    /// The area over which a receiving cluster's error is judged (see `View::estimate`).
+    area_scale: f32,
 }
 
 impl View<'_> {
@@ -119,7 +121,12 @@ impl View<'_> {
                     area_vector: c.area_vector,
                     samples: c.samples.map(|p| {
                         let p = &self.mesh.patches[p as usize];
-                        (p.centroid(), p.normal, p.scene_triangle)
+                        Sample {
+                            verts: p.verts,
+                            normal: p.normal,
+                            area: p.area,
+                            triangle: p.scene_triangle,
+                        }
                     }),
                 }
             }
@@ -245,19 +252,17 @@ impl View<'_> {
         // over a receiver's cluster links instead of averaging out, and a receiving
         // cluster shares its light out by an approximate orientation (`Octants`): links
         // with a cluster at either end are held to a sixteenth of the threshold.
-        let threshold = if l.source.cluster().is_some() || l.receiver.cluster().is_some() {
+        let clustered = l.source.cluster().is_some() || l.receiver.cluster().is_some();
+        let threshold = if clustered {
             self.threshold / CLUSTER_STRICTNESS
         } else {
             self.threshold
         };
-        // Ends whose bounding spheres overlap (a cluster and itself, or two that
-        // interpenetrate) have no bound at all: they always split, even before their
-        // source carries light, or the light between them would be lost until it did.
         let kernel = self.kernel_error(l);
         let error = if l.spread.is_infinite() && rho > 0.0 {
-            f32::INFINITY
+            self.near_error(l.receiver, l.source, r, s)
         } else {
-            kernel + variation
+            (kernel + variation) * self.dilution(l.receiver, r)
         };
         Estimate {
             kernel,
@@ -265,6 +270,29 @@ impl View<'_> {
             error,
             threshold,
         }
+    }
+
+    /// How much of a link's error counts: a receiver smaller than `area_scale` is judged
+    /// by the power its error misplaces spread over that area.
+    fn dilution(&self, receiver: NodeId, r: &Shape) -> f32 {
+        if receiver.cluster().is_some() {
+            (area(r) / self.area_scale).min(1.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// The error of a link whose ends' bounding spheres overlap: no kernel bound holds, but
+    /// what it carries is at most all the light the source can send to the receiver,
+    /// ρ_r · B_s · min(A_r, A_s) W (F_rs ≤ 1 and A_r F_rs = A_s F_sr ≤ A_s), judged spread
+    /// over `area_scale` like other receivers smaller than it; infinite (always split) for
+    /// a receiver that is not.
+    fn near_error(&self, receiver: NodeId, source: NodeId, r: &Shape, s: &Shape) -> f32 {
+        let dilution = self.dilution(receiver, r);
+        if dilution >= 1.0 {
+            return f32::INFINITY;
+        }
+        self.reflectance(receiver) * self.source_b(source) * area(r).min(area(s)) / self.area_scale
     }
 
     fn decide(&self, l: &Link) -> Decision {
@@ -339,12 +367,16 @@ impl View<'_> {
         if transfer::blind(&rs, &ss, self.mesh.epsilon()) {
             return None;
         }
+        let clustered = r.cluster().is_some() || s.cluster().is_some();
+        let threshold = self.threshold / CLUSTER_STRICTNESS;
+        let sample_near = clustered && self.near_error(r, s, &rs, &ss) <= threshold;
         let mut t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
             (r, &rs),
             (s, &ss),
             (self.unsplittable(r), self.unsplittable(s)),
+            sample_near,
         );
         if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
             // A cluster's kernel bound is zero only where nothing can pass.
@@ -404,6 +436,7 @@ impl Solver {
             min_size,
             threshold: 0.0,
             ambient: 0.0,
+            area_scale: self.area_scale(),
         };
         let pairs: Vec<(NodeId, NodeId)> = if self.settings.hierarchy.clustering {
             if h.clusters.nodes.is_empty() {
@@ -439,6 +472,7 @@ impl Solver {
             min_size: self.hierarchy_min_size(),
             threshold: h.threshold,
             ambient: 0.0,
+            area_scale: self.area_scale(),
         };
         let (r, s) = (view.shape(l.receiver), view.shape(l.source));
         view.estimate(l, &r, &s)
@@ -472,6 +506,12 @@ impl Solver {
         };
         let rho = self.mean_reflectance().min(0.999);
         (e * rho / (1.0 - rho)) as f32
+    }
+
+    /// The area over which the oracle judges a small receiving cluster's error: a
+    /// starting element's, element_size².
+    fn area_scale(&self) -> f32 {
+        (self.mesh.element_size * self.mesh.element_size) as f32
     }
 
     /// The smallest element the hierarchy may make.
@@ -528,6 +568,8 @@ impl Solver {
         let result = self.advance(h, &mut round, min_size, cancel);
         match result {
             Ok(true) => {
+                // The link budget's infinite threshold holds for later rounds too.
+                h.threshold = h.threshold.max(round.threshold);
                 let mut kept = std::mem::take(&mut round.kept);
                 kept.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                 h.links = kept;
@@ -559,6 +601,7 @@ impl Solver {
             min_size,
             threshold: round.threshold,
             ambient: round.ambient,
+            area_scale: self.area_scale(),
         };
         if round.next_pair < round.pairs.len() {
             // Evaluate the next chunk of new links.
@@ -584,7 +627,6 @@ impl Solver {
                     let links = [&round.kept[..], &round.work, &round.waiting]
                         .into_iter()
                         .flatten()
-                        .filter(|l| l.spread.is_finite())
                         .copied()
                         .collect();
                     self.preview(h, links);
@@ -637,6 +679,13 @@ impl Solver {
             }
             round.work = Vec::new();
             round.changed |= !round.pairs.is_empty();
+            // Past the link budget refinement stops: the pairs just made are the last
+            // (evaluated, and then kept, at an infinite threshold, so that those whose
+            // ends overlap carry their sampled transfer), and later rounds keep it.
+            let links = round.kept.len() + round.waiting.len() + round.pairs.len();
+            if links > self.settings.hierarchy.max_links {
+                round.threshold = f32::INFINITY;
+            }
             return Ok(false);
         }
         if round.waiting.is_empty() {

@@ -37,6 +37,15 @@ use crate::solver::form_factor::{form_factor_weight, strata_visibility};
 use glam::Vec3;
 use std::f32::consts::PI;
 
+/// A patch standing for a cluster in its transfers (see `Cluster::samples`).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Sample {
+    pub verts: [Vec3; 3],
+    pub normal: Vec3,
+    pub area: f32,
+    pub triangle: u32,
+}
+
 /// What a node looks like to a transfer.
 #[derive(Clone, Copy, Debug)]
 pub(super) enum Shape {
@@ -57,8 +66,8 @@ pub(super) enum Shape {
         area: f32,
         /// Σ A_i n_i of the surfaces inside.
         area_vector: Vec3,
-        /// Points on surfaces inside it (patch centroids), their normals and triangles.
-        samples: [(Vec3, Vec3, u32); SAMPLES],
+        /// Patches inside it, drawn by area.
+        samples: [Sample; SAMPLES],
     },
 }
 
@@ -157,13 +166,16 @@ fn seed(receiver: NodeId, source: NodeId) -> u64 {
 /// The transfer from `source` to `receiver`. `final_ends`: whether the receiver and the
 /// source are leaves that cannot be split further. When both are, a partly visible link
 /// is sampled with 16 strata per receiver point instead of 4; a final source is constant
-/// (see `Hierarchy::pull`), so where its light comes from is not needed.
+/// (see `Hierarchy::pull`), so where its light comes from is not needed. `sample_near`:
+/// whether a link whose ends overlap is to carry its sampled transfer (the oracle may keep
+/// it) or nothing (it will be split).
 pub(super) fn evaluate(
     bvh: &Bvh,
     eps: f32,
     (receiver, r): (NodeId, &Shape),
     (source, s): (NodeId, &Shape),
     final_ends: (bool, bool),
+    sample_near: bool,
 ) -> Transfer {
     let seed = seed(receiver, source);
     match (r, s) {
@@ -181,7 +193,7 @@ pub(super) fn evaluate(
                 ..
             },
         ) => surface_to_surface(bvh, eps, (rv, *rn, *rt), (sv, *sn, *st), final_ends, seed),
-        _ => with_cluster(bvh, eps, r, s, seed),
+        _ => with_cluster(bvh, eps, r, s, seed, sample_near),
     }
 }
 
@@ -356,21 +368,34 @@ fn sample_points(shape: &Shape, eps: f32, seed: u64, other: Vec3) -> [(Vec3, u32
         Shape::Cluster { samples, .. } => {
             let mut facing = [0usize; SAMPLES];
             let mut count = 0;
-            for (k, (p, n, _)) in samples.iter().enumerate() {
-                if n.dot(other - *p) > 0.0 {
+            for (k, p) in samples.iter().enumerate() {
+                if p.normal.dot(other - centroid(&p.verts)) > 0.0 {
                     facing[count] = k;
                     count += 1;
                 }
             }
             std::array::from_fn(|i| {
-                let (p, n, t) = samples[if count > 0 { facing[i % count] } else { i }];
-                (p + n * eps, t)
+                let p = samples[if count > 0 { facing[i % count] } else { i }];
+                (centroid(&p.verts) + p.normal * eps, p.triangle)
             })
         }
     }
 }
 
-fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
+/// Whether the bounding spheres of two nodes overlap: their cluster kernel has no bound
+/// (see [`ClusterKernel`]) and their transfer is sampled instead ([`near_transfer`]).
+pub(super) fn overlap(r: &Shape, s: &Shape) -> bool {
+    (s.centre() - r.centre()).length() <= r.radius() + s.radius()
+}
+
+fn with_cluster(
+    bvh: &Bvh,
+    eps: f32,
+    r: &Shape,
+    s: &Shape,
+    seed: u64,
+    sample_near: bool,
+) -> Transfer {
     let (cr, cs) = (r.centre(), s.centre());
     let d = (cs - cr).length();
     let nothing = |spread| Transfer {
@@ -381,8 +406,15 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
         toward: CENTROID,
         miss: [0.0; 3],
     };
-    if d <= 0.0 {
-        return nothing(f32::INFINITY);
+    if overlap(r, s) {
+        // No bound on the kernel: the oracle judges the link by the power it may carry,
+        // and one it keeps carries the sampled transfer; one it will split carries
+        // nothing.
+        return if sample_near {
+            near_transfer(bvh, eps, r, s, seed)
+        } else {
+            nothing(f32::INFINITY)
+        };
     }
     let towards = (cs - cr) / d;
     let kernel = ClusterKernel::new(r, s, d, towards);
@@ -405,6 +437,85 @@ fn with_cluster(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfe
         partial,
         rays: SAMPLES as u32,
         // Cluster ends are far apart, where the kernel barely varies over the source.
+        toward: CENTROID,
+        miss: [0.0; 3],
+    }
+}
+
+/// The transfer between ends whose bounding spheres overlap, sampled over the source's
+/// surfaces: F(x → S) ≈ Σ_j (A_S / (n A_j)) F(x → P_j) V(x, P_j), the P_j the source's n
+/// sample patches (drawn with probability A_j / A_S, so the sum is unbiased), F the exact
+/// point-to-polygon factor from the front of P_j, V one shadow ray to P_j's centroid. A
+/// surface source is its own single sample (the sum is then exact up to visibility). A
+/// surface receiver takes it at its three quadrature points; a receiving cluster the mean
+/// over its sample patches' centroids (also drawn by area, so the mean estimates the
+/// irradiance averaged over its surfaces), which reaches its surfaces from every
+/// direction alike (see `Octants::add_around`). `spread` is infinite: no kernel bound
+/// holds between overlapping ends, and the oracle judges such a link by the power it may
+/// carry.
+fn near_transfer(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
+    // The source's samples and the weight A_S / (n A_j) of each.
+    let (sources, weight): (&[Sample], [f32; SAMPLES]) = match s {
+        Shape::Surface {
+            verts,
+            normal,
+            area,
+            triangle,
+        } => (
+            &[Sample {
+                verts: *verts,
+                normal: *normal,
+                area: *area,
+                triangle: *triangle,
+            }],
+            [1.0; SAMPLES],
+        ),
+        Shape::Cluster { samples, area, .. } => (
+            samples,
+            samples.map(|p| {
+                if p.area > 0.0 {
+                    area / (SAMPLES as f32 * p.area)
+                } else {
+                    0.0
+                }
+            }),
+        ),
+    };
+    let mut rays = 0u32;
+    let mut at = |x: Vec3, n: Vec3, own: u32| -> f32 {
+        let mut f = 0.0;
+        for (j, (p, w)) in sources.iter().zip(&weight).enumerate() {
+            let k = front_form_factor(x, n, &p.verts, p.normal);
+            if k <= 0.0 || *w <= 0.0 {
+                continue;
+            }
+            let y = stratified_point(&p.verts, 1, 0, hash(seed ^ j as u64)) + p.normal * eps;
+            rays += 1;
+            f += w * k * bvh.transmittance(x + n * eps, y, [own, p.triangle]);
+        }
+        f
+    };
+    let values = match r {
+        Shape::Surface {
+            verts,
+            normal,
+            triangle,
+            ..
+        } => quadrature(verts).map(|x| at(x, *normal, *triangle)),
+        Shape::Cluster { samples, .. } => {
+            let mean = samples
+                .iter()
+                .map(|p| at(centroid(&p.verts), p.normal, p.triangle))
+                .sum::<f32>()
+                / SAMPLES as f32;
+            [mean; 3]
+        }
+    };
+    Transfer {
+        values: values.map(|v| if v.is_finite() { v } else { 0.0 }),
+        spread: f32::INFINITY,
+        partial: false,
+        rays,
         toward: CENTROID,
         miss: [0.0; 3],
     }
@@ -538,7 +649,12 @@ mod tests {
                     },
                     area: 1.0,
                     area_vector: Vec3::ZERO,
-                    samples: [(Vec3::ZERO, Vec3::Z, 0); SAMPLES],
+                    samples: [Sample {
+                        verts: [Vec3::ZERO; 3],
+                        normal: Vec3::Z,
+                        area: 0.0,
+                        triangle: 0,
+                    }; SAMPLES],
                 }
             } else {
                 Shape::Surface {
@@ -575,7 +691,12 @@ mod tests {
                     },
                     area: 1.5,
                     area_vector: a,
-                    samples: [(cs, Vec3::Z, 1); SAMPLES],
+                    samples: [Sample {
+                        verts: [cs; 3],
+                        normal: Vec3::Z,
+                        area: 0.0,
+                        triangle: 1,
+                    }; SAMPLES],
                 }
             };
             let (cr, cs) = (r.centre(), s.centre());
@@ -620,6 +741,115 @@ mod tests {
                     k.hi
                 );
             }
+        }
+    }
+
+    /// The sampled transfer between overlapping ends is unbiased: over many draws of a
+    /// cluster's sample patches (by area, as `clusters::draw_by_area` draws them), its mean
+    /// at each quadrature point of a receiver standing on the cluster's floor matches the
+    /// exact unoccluded sum of the point-to-polygon factors of all the cluster's triangles,
+    /// within four standard errors of the mean. The triangles' areas differ by 40×, so
+    /// the weights A_S / (n A_j) that undo the drawing by area matter.
+    #[test]
+    fn the_near_transfer_is_an_unbiased_estimate_of_the_exact_one() {
+        use crate::solver::hierarchical::clusters::draw_by_area;
+        // A floor of six triangles of very different sizes, facing up, and a receiver
+        // standing on it, facing +x, inside the floor's bounding sphere.
+        let floor: Vec<[Vec3; 3]> = vec![
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.2, 0.0, 0.0),
+                Vec3::new(1.0, 0.2, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 0.2, 0.0),
+                Vec3::new(1.2, 0.0, 0.0),
+                Vec3::new(1.2, 0.3, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 0.2, 0.0),
+                Vec3::new(1.2, 0.3, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+            ],
+            [
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(1.2, 0.3, 0.0),
+                Vec3::new(1.3, 1.0, 0.0),
+            ],
+        ];
+        let areas: Vec<f32> = floor.iter().map(crate::geometry::triangle_area).collect();
+        let total: f32 = areas.iter().sum();
+        let rv = [
+            Vec3::new(0.5, 0.3, 0.0),
+            Vec3::new(0.5, 0.7, 0.0),
+            Vec3::new(0.5, 0.5, 0.4),
+        ];
+        let r = Shape::Surface {
+            verts: rv,
+            normal: Vec3::X,
+            area: crate::geometry::triangle_area(&rv),
+            triangle: floor.len() as u32,
+        };
+        let mut triangles = floor.clone();
+        triangles.push(rv);
+        let bvh = Bvh::build(&triangles, &[]);
+        let exact = quadrature(&rv).map(|x| {
+            floor
+                .iter()
+                .map(|t| front_form_factor(x, Vec3::X, t, Vec3::Z))
+                .sum::<f32>()
+        });
+        let (mut sum, mut sum2) = ([0.0f64; 3], [0.0f64; 3]);
+        let draws = 4_000u64;
+        for d in 0..draws {
+            let samples = draw_by_area(&areas, hash(d)).map(|i| Sample {
+                verts: floor[i],
+                normal: Vec3::Z,
+                area: areas[i],
+                triangle: i as u32,
+            });
+            let s = Shape::Cluster {
+                centre: Vec3::new(0.65, 0.5, 0.0),
+                radius: 0.85,
+                lo: Vec3::ZERO,
+                hi: Vec3::new(1.3, 1.0, 0.0),
+                facing: Facing {
+                    axis: Vec3::Z,
+                    cos: 1.0,
+                    low: 0.0,
+                },
+                area: total,
+                area_vector: Vec3::Z * total,
+                samples,
+            };
+            assert!(overlap(&r, &s));
+            let t = near_transfer(&bvh, 1e-5, &r, &s, hash(d ^ 99));
+            assert!(t.spread.is_infinite());
+            for k in 0..3 {
+                sum[k] += t.values[k] as f64;
+                sum2[k] += (t.values[k] as f64).powi(2);
+            }
+        }
+        for k in 0..3 {
+            let n = draws as f64;
+            let mean = sum[k] / n;
+            let error = ((sum2[k] / n - mean * mean).max(0.0) / n).sqrt();
+            assert!(
+                (mean - exact[k] as f64).abs() <= 4.0 * error + 1e-6,
+                "point {k}: sampled {mean} ± {error}, exact {}",
+                exact[k]
+            );
+            assert!(exact[k] > 0.01, "the receiver sees the floor");
         }
     }
 
