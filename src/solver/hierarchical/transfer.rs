@@ -46,8 +46,10 @@ pub(super) struct Sample {
     pub triangle: u32,
 }
 
-/// What a node looks like to a transfer.
+/// What a node looks like to a transfer. Built on the stack for each link the oracle
+/// makes or judges, so a cluster's samples stay inline rather than behind an allocation.
 #[derive(Clone, Copy, Debug)]
+#[allow(clippy::large_enum_variant)]
 pub(super) enum Shape {
     Surface {
         verts: [Vec3; 3],
