@@ -195,8 +195,8 @@ fn previews_light_the_whole_scene_before_the_first_round_ends() {
         "dark area {last_dark} m² against {converged_dark} m² converged"
     );
     // Jacobi sweeps from B = E' through non-negative transfers rise towards their fixed
-    // point, and links whose ends overlap carry nothing until the oracle keeps one (then
-    // its sampled transfer; their centre-to-centre kernel is meaningless): no preview may
+    // point, and links whose ends overlap carry nothing (the oracle splits them all; their
+    // centre-to-centre kernel is meaningless): no preview may
     // hold more light than the converged solution, up to the oracle's ε = 2 % on what the
     // coarser links carry. (Measured: 0.53 of the converged power, the lamp alone, rising
     // to 0.95.) With the overlapping links carrying their centre-to-centre kernel, the

@@ -409,9 +409,9 @@ fn with_cluster(
         miss: [0.0; 3],
     };
     if overlap(r, s) {
-        // No bound on the kernel: the oracle judges the link by the power it may carry,
-        // and one it keeps carries the sampled transfer; one it will split carries
-        // nothing.
+        // No bound on the kernel: the oracle splits such a link (it then carries
+        // nothing), unless it keeps every link (past the link budget), when it carries
+        // the sampled transfer.
         return if sample_near {
             near_transfer(bvh, eps, r, s, seed)
         } else {
@@ -453,8 +453,7 @@ fn with_cluster(
 /// over its sample patches' centroids (also drawn by area, so the mean estimates the
 /// irradiance averaged over its surfaces), which reaches its surfaces from every
 /// direction alike (see `Octants::add_around`). `spread` is infinite: no kernel bound
-/// holds between overlapping ends, and the oracle judges such a link by the power it may
-/// carry.
+/// holds between overlapping ends.
 fn near_transfer(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
     // The source's samples and the weight A_S / (n A_j) of each.
     let (sources, weight): (&[Sample], [f32; SAMPLES]) = match s {
