@@ -348,16 +348,25 @@ impl View<'_> {
         if transfer::blind(&rs, &ss, self.mesh.epsilon()) {
             return None;
         }
-        // Only a link the oracle will keep however large its error (past the link budget)
-        // needs the sampled transfer of overlapping ends; any other such link splits.
-        let sample_near = self.threshold.is_infinite();
+        // The largest spread the oracle could keep a cluster link with (see `estimate`;
+        // the source's variation only adds to the error): infinite past the link budget.
+        let keep_spread = if r.cluster().is_some() || s.cluster().is_some() {
+            let carried = self.reflectance(r) * self.source_b(s);
+            if carried > 0.0 {
+                self.threshold / CLUSTER_STRICTNESS / carried
+            } else {
+                f32::INFINITY
+            }
+        } else {
+            f32::INFINITY
+        };
         let mut t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
             (r, &rs),
             (s, &ss),
             (self.unsplittable(r), self.unsplittable(s)),
-            sample_near,
+            keep_spread,
         );
         if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
             // A cluster's kernel bound is zero only where nothing can pass.
