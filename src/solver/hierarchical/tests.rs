@@ -32,6 +32,15 @@ fn solver(mesh: MeshSettings, hierarchy: HierarchySettings, tolerance: f64) -> S
     .unwrap()
 }
 
+/// Σ A B over the elements (all channels), W.
+fn power(s: &Solver) -> f64 {
+    s.radiosity
+        .iter()
+        .zip(&s.mesh.elements)
+        .map(|(b, e)| sum3d(*b) * e.area as f64)
+        .sum()
+}
+
 /// Dense Gaussian elimination with partial pivoting (the test's own, independent of the
 /// solver's LU).
 fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
@@ -157,13 +166,6 @@ fn push_pull_hands_the_leaves_the_power_the_nodes_gathered() {
 fn previews_light_the_whole_scene_before_the_first_round_ends() {
     let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
     s.settings.step_budget = std::time::Duration::ZERO;
-    let power = |s: &Solver| {
-        s.radiosity
-            .iter()
-            .zip(&s.mesh.elements)
-            .map(|(b, e)| sum3d(*b) * e.area as f64)
-            .sum::<f64>()
-    };
     // Area of the elements without light.
     let dark = |s: &Solver| {
         s.radiosity
@@ -220,13 +222,6 @@ fn previews_light_the_whole_scene_before_the_first_round_ends() {
 /// the budget, and the coarser last generation's more.
 #[test]
 fn the_link_budget_stops_refinement_and_the_solve_still_converges() {
-    let power = |s: &Solver| {
-        s.radiosity
-            .iter()
-            .zip(&s.mesh.elements)
-            .map(|(b, e)| sum3d(*b) * e.area as f64)
-            .sum::<f64>()
-    };
     let budget = 20_000;
     let mut budgeted = solver(
         MeshSettings::default(),
@@ -236,9 +231,7 @@ fn the_link_budget_stops_refinement_and_the_solve_still_converges() {
         },
         1e-3,
     );
-    while !budgeted.is_converged() {
-        budgeted.step(crate::cancel::never()).unwrap();
-    }
+    budgeted.run(None, crate::cancel::never()).unwrap();
     assert_eq!(budgeted.stats.link_budget_reached, Some(true));
     let links = budgeted.stats.links.unwrap();
     // The generation under way when the budget passes is the last: each of its links
@@ -248,9 +241,7 @@ fn the_link_budget_stops_refinement_and_the_solve_still_converges() {
         "{links} links for a budget of {budget}"
     );
     let mut full = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
-    while !full.is_converged() {
-        full.step(crate::cancel::never()).unwrap();
-    }
+    full.run(None, crate::cancel::never()).unwrap();
     assert_eq!(full.stats.link_budget_reached, Some(false));
     let (b, f) = (power(&budgeted), power(&full));
     eprintln!(
