@@ -249,7 +249,9 @@ impl View<'_> {
         // nearby cluster is low, as the mean of 1/r² exceeds 1/r̄²), so its errors add up
         // over a receiver's cluster links instead of averaging out, and a receiving
         // cluster shares its light out by an approximate orientation (`Octants`): links
-        // with a cluster at either end are held to a sixteenth of the threshold.
+        // with a cluster at either end are held to a quarter of the threshold (a sixteenth
+        // gave the Cornell box's errors to three digits at many more links on Sponza; none
+        // at all left its umbrae 4.7 % off, against 3.3 %).
         let clustered = l.source.cluster().is_some() || l.receiver.cluster().is_some();
         let threshold = if clustered {
             self.threshold / CLUSTER_STRICTNESS
