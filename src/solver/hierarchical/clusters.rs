@@ -133,6 +133,7 @@ impl Clusters {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         let mut area = 0.0f32;
         let mut area_vector = Vec3::ZERO;
+        let mut abs_area = Vec3::ZERO;
         let mut reflectance = 0.0f32;
         for &p in patches.iter() {
             let patch = &mesh.patches[p as usize];
@@ -142,6 +143,7 @@ impl Clusters {
             }
             area += patch.area;
             area_vector += patch.normal * patch.area;
+            abs_area += patch.normal.abs() * patch.area;
             reflectance = reflectance.max(patch.reflectance.max_element());
         }
         let axis = area_vector.normalize_or_zero();
@@ -156,11 +158,6 @@ impl Clusters {
             for v in patch.verts {
                 facing.low = facing.low.min(axis.dot(v));
             }
-        }
-        let mut abs_area = Vec3::ZERO;
-        for &p in patches.iter() {
-            let patch = &mesh.patches[p as usize];
-            abs_area += patch.normal.abs() * patch.area;
         }
         let areas: Vec<f32> = patches
             .iter()

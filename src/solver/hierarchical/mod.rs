@@ -389,13 +389,11 @@ impl Hierarchy {
     /// Gathers H at every receiver over its links (at a surface node's corners; by
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
-        // A node's bounding sphere, as `transfer::Shape` has it.
-        let ends = |id: NodeId| match id.cluster() {
-            Some(c) => (self.clusters.nodes[c].centre, self.clusters.nodes[c].radius),
+        let centre = |id: NodeId| match id.cluster() {
+            Some(c) => self.clusters.nodes[c].centre,
             None => {
                 let v = &mesh.nodes[id.0 as usize].verts;
-                let c = (v[0] + v[1] + v[2]) / 3.0;
-                (c, v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max))
+                (v[0] + v[1] + v[2]) / 3.0
             }
         };
         let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
@@ -410,13 +408,13 @@ impl Hierarchy {
                     let at = cluster.centre;
                     for l in group {
                         let e = self.source_b(mesh, l) * l.factor();
-                        let (to, reach) = ends(l.source);
-                        if (to - at).length() <= cluster.radius + reach {
-                            // A sampled near link carries the mean irradiance over the
-                            // cluster's surfaces, arriving from every side.
+                        if l.spread.is_infinite() {
+                            // Ends that overlap (`transfer::overlap`): a sampled near link
+                            // carries the mean irradiance over the cluster's surfaces,
+                            // arriving from every side.
                             o.add_around(e * cluster.area / cluster.abs_area.element_sum());
                         } else {
-                            o.add(e, (to - at).normalize_or_zero());
+                            o.add(e, (centre(l.source) - at).normalize_or_zero());
                         }
                     }
                 } else {

@@ -252,12 +252,7 @@ impl View<'_> {
         // with a cluster at either end are held to a quarter of the threshold (a sixteenth
         // gave the Cornell box's errors to three digits at many more links on Sponza; none
         // at all left its umbrae 4.7 % off, against 3.3 %).
-        let clustered = l.source.cluster().is_some() || l.receiver.cluster().is_some();
-        let threshold = if clustered {
-            self.threshold / CLUSTER_STRICTNESS
-        } else {
-            self.threshold
-        };
+        let threshold = self.held_to(l.receiver, l.source);
         let kernel = self.kernel_error(l);
         // Ends whose bounding spheres overlap (a cluster and itself, or two that
         // interpenetrate) have no bound at all: they always split, even before their
@@ -275,6 +270,16 @@ impl View<'_> {
             variation,
             error,
             threshold,
+        }
+    }
+
+    /// The threshold a link between `r` and `s` is held to: a quarter of the oracle's with
+    /// a cluster at either end (see `estimate`).
+    fn held_to(&self, r: NodeId, s: NodeId) -> f32 {
+        if r.cluster().is_some() || s.cluster().is_some() {
+            self.threshold / CLUSTER_STRICTNESS
+        } else {
+            self.threshold
         }
     }
 
@@ -355,7 +360,7 @@ impl View<'_> {
         let keep_spread = if r.cluster().is_some() || s.cluster().is_some() {
             let carried = self.reflectance(r) * self.source_b(s);
             if carried > 0.0 {
-                self.threshold / CLUSTER_STRICTNESS / carried
+                self.held_to(r, s) / carried
             } else {
                 f32::INFINITY
             }

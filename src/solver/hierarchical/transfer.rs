@@ -390,7 +390,7 @@ fn sample_points(shape: &Shape, eps: f32, seed: u64, other: Vec3) -> [(Vec3, u32
 
 /// Whether the bounding spheres of two nodes overlap: their cluster kernel has no bound
 /// (see [`ClusterKernel`]) and their transfer is sampled instead ([`near_transfer`]).
-pub(super) fn overlap(r: &Shape, s: &Shape) -> bool {
+fn overlap(r: &Shape, s: &Shape) -> bool {
     (s.centre() - r.centre()).length() <= r.radius() + s.radius()
 }
 
