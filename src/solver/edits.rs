@@ -1,7 +1,7 @@
 //! Live material edits (Chen, "Incremental radiosity", Graphics Gems II, 1991): a
 //! reflectance or emission change becomes signed unshot radiosity that the solve carries.
 
-use super::{Method, PatchEdit, Phase, Solver};
+use super::{Method, PatchEdit, Phase, Solver, sum3d};
 use crate::mesh::sanitize;
 use glam::Vec3;
 use std::sync::Arc;
@@ -15,13 +15,24 @@ impl Solver {
     /// rest of the scene. The gathering methods keep their current B as the starting guess
     /// and sweep again; the direct method solves again from its stored rows; stochastic
     /// Jacobi, whose sources must be positive, starts over.
-    pub fn edit_patches(&mut self, edits: &[PatchEdit]) {
+    ///
+    /// The hierarchical method keeps each leaf's H from its last sweep, so it takes the
+    /// same step on the edited elements at once (B_i = E'_i + ρ_i H_i with the new values,
+    /// a Gauss–Seidel update of just those elements); the sweeps carry the change on.
+    ///
+    /// Returns whether the solution already shows the edit (on the edited elements, before
+    /// any further step): true for the progressive and hierarchical methods.
+    pub fn edit_patches(&mut self, edits: &[PatchEdit]) -> bool {
         let mesh = Arc::clone(&self.mesh);
         let lit = match self.phase {
             Phase::Lighting(next) => next,
             _ => mesh.elements.len(),
         };
         let incremental = self.settings.method == Method::Progressive;
+        let local = incremental || self.settings.method == Method::Hierarchical;
+        // The change of Σ A E' over the edited elements (a whole sum would cost a pass over
+        // every element of the scene for each edit).
+        let mut power_change = 0.0f64;
         for edit in edits {
             let Some(patch) = mesh.patches.get(edit.patch as usize) else {
                 continue;
@@ -38,11 +49,14 @@ impl Solver {
                 }
                 let s = emission + rho * self.external_in[i];
                 let ds = (s - self.source[i]).as_dvec3();
+                power_change += sum3d(ds) * mesh.elements[i].area as f64;
                 self.source[i] = s;
-                if incremental {
+                if local {
                     let delta = ds + (rho - old_rho).as_dvec3() * self.gathered[i];
                     self.radiosity[i] += delta;
-                    self.unshot[i] += delta;
+                    if incremental {
+                        self.unshot[i] += delta;
+                    }
                 } else if matches!(self.phase, Phase::Lighting(_)) {
                     self.radiosity[i] = s.as_dvec3();
                     self.unshot[i] = s.as_dvec3();
@@ -50,9 +64,13 @@ impl Solver {
             }
         }
         if matches!(self.phase, Phase::Lighting(_)) {
-            return; // the source power is summed when lighting finishes
+            return false; // the source power is summed when lighting finishes
         }
-        self.update_source_power();
+        let power = self.stats.source_power + power_change;
+        // What rounding leaves of a sum that should be zero (every light turned off).
+        let rounding = 1e-9 * self.power_scale.max(self.stats.source_power);
+        self.stats.source_power = if power <= rounding { 0.0 } else { power };
+        self.power_scale = self.power_scale.max(self.stats.source_power);
         self.stats.converged = false;
         match self.settings.method {
             Method::StochasticJacobi => {
@@ -70,12 +88,18 @@ impl Solver {
                 if self.phase == Phase::Done {
                     self.phase = Phase::Iterating;
                 }
-                self.hierarchy_edited();
+                let edited: Vec<u32> = edits
+                    .iter()
+                    .map(|e| e.patch)
+                    .filter(|&p| (p as usize) < mesh.patches.len())
+                    .collect();
+                self.hierarchy_edited(&edited);
             }
         }
         if self.power_scale <= 0.0 {
             self.phase = Phase::Done;
             self.stats.converged = true;
         }
+        local
     }
 }

@@ -96,7 +96,8 @@ pub struct Solver {
     /// First-bounce irradiance factor h_i of external light, so E'_i = E_i + ρ_i h_i.
     external_in: Vec<Vec3>,
     /// Progressive: radiosity gathered so far before reflection, H_i = Σ F_ip ΔB̄_p, so that
-    /// B_i = E'_i + ρ_i H_i at every moment. Chen's incremental edits need it.
+    /// B_i = E'_i + ρ_i H_i at every moment; hierarchical: each leaf's H of the last sweep.
+    /// Chen's incremental edits need it.
     gathered: Vec<DVec3>,
     /// Largest source power seen (the scale for the unshot fraction when an edit turns the
     /// lights off and the source power drops to zero).

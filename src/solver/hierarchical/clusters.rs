@@ -216,10 +216,29 @@ impl Clusters {
         &self.children[r.start as usize..r.end as usize]
     }
 
-    /// Recomputes each cluster's largest reflectance from `patch_reflectance` (after an
-    /// edit), leaves first.
-    pub fn update_reflectance(&mut self, patch_of_root: impl Fn(u32) -> f32) {
-        for c in (0..self.nodes.len()).rev() {
+    /// Recomputes the largest reflectance of the clusters above the `edited` patches
+    /// (after an edit), leaves first (a child's index is larger than its parent's).
+    pub fn update_reflectance(
+        &mut self,
+        edited: impl Iterator<Item = u32>,
+        patch_of_root: impl Fn(u32) -> f32,
+    ) {
+        let mut above = vec![false; self.nodes.len()];
+        let mut order = Vec::new();
+        for p in edited {
+            let mut c = self
+                .patch_parent
+                .get(p as usize)
+                .copied()
+                .unwrap_or(u32::MAX);
+            while c != u32::MAX && !above[c as usize] {
+                above[c as usize] = true;
+                order.push(c as usize);
+                c = self.nodes[c as usize].parent;
+            }
+        }
+        order.sort_unstable_by(|a, b| b.cmp(a));
+        for c in order {
             let mut r = 0.0f32;
             for &k in self.children_of(c) {
                 r = r.max(match k.cluster() {

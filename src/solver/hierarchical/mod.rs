@@ -21,7 +21,10 @@
 //!   tolerance.
 //!
 //! A link's factor does not depend on ρ or E, so an edit of a material only sweeps again
-//! (and lets the oracle look again): no existing form factor is recomputed.
+//! (and lets the oracle look again): no existing form factor is recomputed. Each leaf
+//! keeps the H of the last sweep, so the edited leaves show the edit at once, B = E' +
+//! ρ_new H, before any sweep (`edits`). Past the link budget the oracle has nothing left to
+//! decide, so no round runs after the sweeps converge.
 //!
 //! Results do not depend on the thread count: each link's rays are seeded by its ends'
 //! ids, links are sorted by (receiver, source), and every sum runs in that order.
@@ -189,9 +192,10 @@ pub(super) struct Hierarchy {
     node_patch: Vec<u32>,
     node_area: Vec<f32>,
     node_b: Vec<Vec3>,
-    /// Slope of B over each surface node (see [`Hierarchy::pull`]): B(y) ≈ B̄ + Σ_a
-    /// slope[a] (y − c)_a, c the node's centroid; per axis a, one value per channel.
-    node_slope: Vec<[Vec3; 3]>,
+    /// The linear fit to B over each surface node (see [`Hierarchy::pull`]), as its values
+    /// at the node's corners: a link's source sends their barycentric mix at the link's
+    /// kernel centroid, read from this one array.
+    node_corners: Vec<[Vec3; 3]>,
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
     cluster_b: Vec<Vec3>,
@@ -236,7 +240,7 @@ impl Hierarchy {
             node_patch: Vec::new(),
             node_area: Vec::new(),
             node_b: Vec::new(),
-            node_slope: Vec::new(),
+            node_corners: Vec::new(),
             node_h: Vec::new(),
             element_node: Vec::new(),
             patch_reflectance,
@@ -258,7 +262,7 @@ impl Hierarchy {
         self.node_patch.resize(n, NONE);
         self.node_area.resize(n, 0.0);
         self.node_b.resize(n, Vec3::ZERO);
-        self.node_slope.resize(n, [Vec3::ZERO; 3]);
+        self.node_corners.resize(n, [Vec3::ZERO; 3]);
         self.node_h.resize(n, [Vec3::ZERO; 3]);
         if old == 0 {
             for (p, patch) in mesh.patches.iter().enumerate() {
@@ -297,20 +301,15 @@ impl Hierarchy {
     }
 
     /// The radiosity a link's source sends it: a cluster's mean, or a surface node's
-    /// linear fit at the link's kernel centroid (`transfer::kernel_centroid`), never
-    /// negative.
-    fn source_b(&self, mesh: &Mesh, l: &Link) -> Vec3 {
+    /// linear fit at the link's kernel centroid (`transfer::kernel_centroid`, barycentric
+    /// weights of the node's corners), never negative.
+    fn source_b(&self, l: &Link) -> Vec3 {
         match l.source.cluster() {
             Some(c) => self.cluster_b[c],
             None => {
-                let i = l.source.0 as usize;
-                let v = &mesh.nodes[i].verts;
+                let b = &self.node_corners[l.source.0 as usize];
                 let w = l.toward();
-                let d = v[0] * (w[0] - 1.0 / 3.0)
-                    + v[1] * (w[1] - 1.0 / 3.0)
-                    + v[2] * (w[2] - 1.0 / 3.0);
-                let g = &self.node_slope[i];
-                (self.node_b[i] + g[0] * d.x + g[1] * d.y + g[2] * d.z).max(Vec3::ZERO)
+                (b[0] * w[0] + b[1] * w[1] + b[2] * w[2]).max(Vec3::ZERO)
             }
         }
     }
@@ -332,9 +331,12 @@ impl Hierarchy {
         };
         for i in (0..n).rev() {
             let node = &mesh.nodes[i];
-            self.node_slope[i] = [Vec3::ZERO; 3];
             self.node_b[i] = match (node.element, node.children) {
-                (Some(e), _) => radiosity[e as usize].as_vec3(),
+                (Some(e), _) => {
+                    let b = radiosity[e as usize].as_vec3();
+                    self.node_corners[i] = [b; 3];
+                    b
+                }
                 (None, Some(kids)) => {
                     let mut s = Vec3::ZERO;
                     let mut a = 0.0;
@@ -360,15 +362,22 @@ impl Hierarchy {
                         m[2] += second[k][2] + area * db * db;
                     }
                     let det = m[0] * m[2] - m[1] * m[1];
+                    let (mut gt, mut gb) = (Vec3::ZERO, Vec3::ZERO);
                     if det > 1e-6 * (m[0] + m[2]) * (m[0] + m[2]) {
-                        let gt = (f[0] * m[2] - f[1] * m[1]) / det;
-                        let gb = (f[1] * m[0] - f[0] * m[1]) / det;
-                        self.node_slope[i] = [0, 1, 2].map(|axis| gt * t[axis] + gb * b[axis]);
+                        gt = (f[0] * m[2] - f[1] * m[1]) / det;
+                        gb = (f[1] * m[0] - f[0] * m[1]) / det;
                     }
+                    self.node_corners[i] = node.verts.map(|v| {
+                        let d = v - c;
+                        mean + gt * d.dot(t) + gb * d.dot(b)
+                    });
                     (first[i], second[i]) = (f, m);
                     mean
                 }
-                (None, None) => Vec3::ZERO,
+                (None, None) => {
+                    self.node_corners[i] = [Vec3::ZERO; 3];
+                    Vec3::ZERO
+                }
             };
         }
         for c in (0..self.clusters.nodes.len()).rev() {
@@ -407,7 +416,7 @@ impl Hierarchy {
                     let cluster = &self.clusters.nodes[c];
                     let at = cluster.centre;
                     for l in group {
-                        let e = self.source_b(mesh, l) * l.factor();
+                        let e = self.source_b(l) * l.factor();
                         if l.spread.is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
                             // carries the mean irradiance over the cluster's surfaces,
@@ -419,7 +428,7 @@ impl Hierarchy {
                     }
                 } else {
                     for l in group {
-                        let b = self.source_b(mesh, l);
+                        let b = self.source_b(l);
                         let c = l.corners();
                         for k in 0..3 {
                             h[k] += b * c[k];
@@ -530,8 +539,7 @@ impl Solver {
                 // gathers H in f32, so its change cannot fall below f32 rounding (a few
                 // 10⁻⁸ per element): a tighter tolerance would let the sweeps cycle at
                 // that level for ever, so it is held at SWEEP_FLOOR.
-                let wanted = self.settings.tolerance * (1.0 - self.mean_reflectance()).max(1e-3);
-                if change <= wanted.max(SWEEP_FLOOR) {
+                if change <= self.sweep_tolerance().max(SWEEP_FLOOR) {
                     h.stage = Stage::Refine;
                 }
             }
@@ -546,22 +554,29 @@ impl Solver {
         h.gather(mesh);
         let down = h.cluster_down();
         let (source, reflectance) = (&self.source, &self.reflectance);
-        let new: Vec<DVec3> = (0..mesh.elements.len())
+        let gathered: Vec<DVec3> = (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(1024)
-            .map(|e| {
-                let hh = h.leaf_irradiance(mesh, e, &down);
-                source[e].as_dvec3() + (reflectance[e] * hh).as_dvec3()
-            })
+            .map(|e| h.leaf_irradiance(mesh, e, &down).as_dvec3())
             .collect();
         let (mut changed, mut total) = (0.0f64, 0.0f64);
-        for (e, (b, old)) in new.iter().zip(&self.radiosity).enumerate() {
+        for (e, (hh, old)) in gathered.iter().zip(&mut self.radiosity).enumerate() {
+            let b = source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3();
             let a = mesh.elements[e].area as f64;
-            changed += sum3d((*b - *old).abs()) * a;
+            changed += sum3d((b - *old).abs()) * a;
             total += sum3d(b.abs()) * a;
+            *old = b;
         }
-        self.radiosity = new;
+        // Kept for edits: B = E' + ρ H answers a reflectance change at once (`edits`).
+        self.gathered = gathered;
         if total > 0.0 { changed / total } else { 0.0 }
+    }
+
+    /// The change per sweep the sweeps stop at: the tolerance scaled by 1 − ρ̄ (Jacobi's
+    /// change per sweep shrinks by about ρ̄ each sweep, so what is left is change · ρ̄ /
+    /// (1 − ρ̄)).
+    fn sweep_tolerance(&self) -> f64 {
+        self.settings.tolerance * (1.0 - self.mean_reflectance()).max(1e-3)
     }
 
     /// Records when the first solution of the whole scene was ready.
@@ -583,12 +598,16 @@ impl Solver {
     /// 2.5 M differ after the later rounds, the errors against the reference not at all,
     /// and the sweeps drop from 21 to 17).
     pub(super) fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
-        let saved = (h.node_b.clone(), h.node_slope.clone(), h.cluster_b.clone());
+        let saved = (
+            h.node_b.clone(),
+            h.node_corners.clone(),
+            h.cluster_b.clone(),
+        );
         h.links = links;
         h.links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
         self.sweep(h);
         h.links = Vec::new();
-        (h.node_b, h.node_slope, h.cluster_b) = saved;
+        (h.node_b, h.node_corners, h.cluster_b) = saved;
         self.note_first_solution(h);
     }
 
@@ -608,18 +627,22 @@ impl Solver {
             .unwrap_or(0.0)
     }
 
-    /// After an edit: sweep again from the current solution, then let the oracle look.
-    pub(super) fn hierarchy_edited(&mut self) {
+    /// After an edit of the `edited` patches: sweep again from the current solution, then
+    /// let the oracle look.
+    pub(super) fn hierarchy_edited(&mut self, edited: &[u32]) {
         if let Some(h) = &mut self.hierarchy {
             let mesh = &self.mesh;
-            for (p, patch) in mesh.patches.iter().enumerate() {
-                if let Some(rho) = self.reflectance.get(patch.elements.start as usize) {
-                    h.patch_reflectance[p] = rho.max_element();
+            for &p in edited {
+                let first = mesh.patches[p as usize].elements.start as usize;
+                if let Some(rho) = self.reflectance.get(first) {
+                    h.patch_reflectance[p as usize] = rho.max_element();
                 }
             }
             let (roots, rho) = (&h.node_patch, &h.patch_reflectance);
             h.clusters
-                .update_reflectance(|root| rho[roots[root as usize] as usize]);
+                .update_reflectance(edited.iter().copied(), |root| {
+                    rho[roots[root as usize] as usize]
+                });
             if h.round.is_none() {
                 h.stage = Stage::Sweep;
             }

@@ -526,20 +526,22 @@ impl Solver {
             None => {
                 let mut changed = false;
                 if h.sweeps == 0 && h.links.is_empty() {
-                    let (links, rays) = self.initial_links(h, min_size);
+                    let (mut links, rays) = self.initial_links(h, min_size);
+                    links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                     h.links = links;
                     self.stats.rays += rays;
                     changed = true;
                 }
-                h.pull(&self.mesh, &self.radiosity);
                 // Every round refines to the full threshold: a first round at 4 ε or 16 ε
                 // came out 50 % too bright on the Cornell box (its surviving cluster links
                 // overestimate), worse than waiting for the first full round.
                 let threshold = self.held_threshold(h);
-                if threshold.is_nan() || threshold <= 0.0 {
-                    h.links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
+                // Past the link budget (an infinite threshold) every link is kept: the
+                // round would only re-decide them all.
+                if threshold.is_nan() || threshold <= 0.0 || threshold.is_infinite() {
                     return Ok(Some(changed));
                 }
+                h.pull(&self.mesh, &self.radiosity);
                 let ambient = if h.sweeps == 0 {
                     self.ambient_estimate()
                 } else {

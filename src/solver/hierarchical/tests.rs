@@ -254,3 +254,43 @@ fn the_link_budget_stops_refinement_and_the_solve_still_converges() {
         full.stats.links.unwrap()
     );
 }
+
+/// After an edit, only the clusters above the edited patches are recomputed: every
+/// cluster's largest reflectance must still be the largest over all the patches below it,
+/// found by brute force (each patch's ancestors walked from its leaf cluster), both where
+/// the edit raised a reflectance and where it lowered one.
+#[test]
+fn an_edit_leaves_every_cluster_with_the_largest_reflectance_below_it() {
+    let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-2);
+    s.run(None, crate::cancel::never()).unwrap();
+    let patches = s.mesh.patches.clone();
+    let edits: Vec<crate::solver::PatchEdit> = patches
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| i % 3 == 0)
+        .map(|(i, p)| crate::solver::PatchEdit {
+            patch: i as u32,
+            // Raise some, lower others (the lowered ones test that a maximum can fall).
+            reflectance: if i % 2 == 0 {
+                Vec3::splat(0.95)
+            } else {
+                Vec3::splat(0.01)
+            },
+            emission: p.emission,
+        })
+        .collect();
+    assert!(s.edit_patches(&edits));
+    let h = s.hierarchy.as_ref().unwrap();
+    let mut expected = vec![0.0f32; h.clusters.nodes.len()];
+    for (p, patch) in patches.iter().enumerate() {
+        let rho = s.reflectance[patch.elements.start as usize].max_element();
+        let mut c = h.clusters.patch_parent[p];
+        while c != NONE {
+            expected[c as usize] = expected[c as usize].max(rho);
+            c = h.clusters.nodes[c as usize].parent;
+        }
+    }
+    let got: Vec<f32> = h.clusters.nodes.iter().map(|c| c.reflectance).collect();
+    assert_eq!(got, expected);
+    assert!(expected.contains(&0.95));
+}
