@@ -3,8 +3,8 @@
 //! seed, one at a time; for each, the milliseconds from the edit until the first solution
 //! that includes it (the edit itself where the method updates the edited elements at once,
 //! as the progressive and hierarchical methods do; otherwise the first step after it,
-//! steps of 1 ms) and until the solve has converged again to its tolerance. Written to `DIR/edits.csv` with the header
-//! `material,first_update_ms,converged_ms`.
+//! steps of 1 ms) and until the solve has converged again to its tolerance. Written to
+//! `DIR/edits.csv` with the header `material,first_update_ms,converged_ms`.
 
 use super::options::SolveOptions;
 use crate::files::write_atomic;

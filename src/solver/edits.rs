@@ -33,10 +33,12 @@ impl Solver {
         // The change of Σ A E' over the edited elements (a whole sum would cost a pass over
         // every element of the scene for each edit).
         let mut power_change = 0.0f64;
+        let mut edited = Vec::with_capacity(edits.len());
         for edit in edits {
             let Some(patch) = mesh.patches.get(edit.patch as usize) else {
                 continue;
             };
+            edited.push(edit.patch);
             let rho = sanitize(edit.reflectance).min(Vec3::splat(0.999));
             let emission = sanitize(edit.emission);
             for i in patch.elements.clone() {
@@ -88,11 +90,6 @@ impl Solver {
                 if self.phase == Phase::Done {
                     self.phase = Phase::Iterating;
                 }
-                let edited: Vec<u32> = edits
-                    .iter()
-                    .map(|e| e.patch)
-                    .filter(|&p| (p as usize) < mesh.patches.len())
-                    .collect();
                 self.hierarchy_edited(&edited);
             }
         }

@@ -534,8 +534,7 @@ impl Solver {
                 self.note_first_solution(h);
                 self.stats.residual = Some(change);
                 self.stats.iterations += 1;
-                // Jacobi's change per sweep shrinks by about ρ̄ each sweep, so what is left
-                // is change · ρ̄ / (1 − ρ̄): the tolerance is scaled by 1 − ρ̄. The sweep
+                // The tolerance is scaled by 1 − ρ̄ (`sweep_tolerance`). The sweep
                 // gathers H in f32, so its change cannot fall below f32 rounding (a few
                 // 10⁻⁸ per element): a tighter tolerance would let the sweeps cycle at
                 // that level for ever, so it is held at SWEEP_FLOOR.
