@@ -79,11 +79,37 @@ pub fn probe_values(
     points: &[(DVec3, DVec3)],
     mode: Reconstruction,
 ) -> Vec<Vec3> {
+    let patches = locate_patches(mesh, points);
+    probe_values_on(mesh, radiosity, points, &patches, mode)
+}
+
+/// The patch under each of `points` (world position, normal; see [`Mesh::locate_patch`]).
+/// Refinement never changes a mesh's patches, so these serve every later solution of it.
+pub fn locate_patches(mesh: &Mesh, points: &[(DVec3, DVec3)]) -> Vec<Option<u32>> {
+    use rayon::prelude::*;
+    points
+        .par_iter()
+        .map(|(p, n)| mesh.locate_patch(mesh.to_local(*p), n.as_vec3()))
+        .collect()
+}
+
+/// [`probe_values`] at points whose patches are known ([`locate_patches`]).
+pub fn probe_values_on(
+    mesh: &Mesh,
+    radiosity: &[Vec3],
+    points: &[(DVec3, DVec3)],
+    patches: &[Option<u32>],
+    mode: Reconstruction,
+) -> Vec<Vec3> {
     let r = Reconstructor::new(mode, &mesh.display, &mesh.elements, radiosity);
     points
         .iter()
-        .map(|(p, n)| match mesh.locate(mesh.to_local(*p), n.as_vec3()) {
-            Some((e, bary)) => r.at(&mesh.elements, radiosity, e, bary),
+        .zip(patches)
+        .map(|((p, _), patch)| match patch {
+            Some(patch) => {
+                let (e, bary) = mesh.locate_in_patch(mesh.to_local(*p), *patch);
+                r.at(&mesh.elements, radiosity, e, bary)
+            }
             None => Vec3::ZERO,
         })
         .collect()

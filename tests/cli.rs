@@ -82,10 +82,10 @@ fn solve_writes_stats_and_a_baked_glb() {
     // Converged: the last sweep changed B by at most the tolerance (1e-3) scaled by
     // 1 − ρ̄ ≤ 1.
     assert!(stats["residual"].as_f64().unwrap() <= 1e-3);
-    // 40 bytes a link.
+    // 28 bytes a link (`solver/hierarchical/link.rs`).
     assert_eq!(
         stats["link_bytes"].as_u64().unwrap(),
-        40 * stats["links"].as_u64().unwrap()
+        28 * stats["links"].as_u64().unwrap()
     );
     let first = stats["first_solution_seconds"].as_f64().unwrap();
     assert!(first > 0.0 && first <= stats["seconds"].as_f64().unwrap());

@@ -288,7 +288,8 @@ fn cornell_probes_cover_every_class_and_leave_covered_points_out() {
     let surfaces = Surfaces::new(&scene);
     let bvh = radiosity::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
     let probes = pick(&surfaces, &bvh, &ProbeCounts::default(), 1);
-    for class in Class::ALL {
+    // Every class the drawing sets (the reference sets `Dark`).
+    for class in Class::ALL.into_iter().filter(|c| *c != Class::Dark) {
         let n = probes.iter().filter(|p| p.class == class).count();
         assert!(n >= 20, "{} {class:?} probes", n);
     }
@@ -308,4 +309,73 @@ fn cornell_probes_cover_every_class_and_leave_covered_points_out() {
             "a contact away from the blocks and the lamp: {p:?}"
         );
     }
+}
+
+/// A floor inside a closed box whose single-sided faces point outwards (the box floats
+/// 10 cm over a ground floor, all under a uniform sky): every way out of the inner floor
+/// meets the back of a box face, so the path tracer gives it exactly 0 (checked here) and
+/// no viewer sees it. The probes leave such hidden points out, while the ground and the
+/// box's outside are probed.
+#[test]
+fn probes_leave_hidden_points_out() {
+    use common::quad;
+    use radiosity::reference::Surfaces;
+    use radiosity::reference::probes::{ProbeCounts, pick};
+    use radiosity::scene::{Environment, Object};
+    let square = |y: f32, h: f32| [[-h, y, -h], [-h, y, h], [h, y, h], [h, y, -h]];
+    let mut cube = Object {
+        name: "closed box".into(),
+        world_from_local: DMat4::IDENTITY,
+        ..Default::default()
+    };
+    let (h, lo, hi) = (0.5f32, 0.1f32, 1.1f32);
+    // Six faces, counter-clockwise seen from outside.
+    for f in [
+        [[-h, hi, -h], [-h, hi, h], [h, hi, h], [h, hi, -h]],
+        [[-h, lo, -h], [h, lo, -h], [h, lo, h], [-h, lo, h]],
+        [[h, lo, -h], [h, hi, -h], [h, hi, h], [h, lo, h]],
+        [[-h, lo, -h], [-h, lo, h], [-h, hi, h], [-h, hi, -h]],
+        [[-h, lo, h], [h, lo, h], [h, hi, h], [-h, hi, h]],
+        [[-h, lo, -h], [-h, hi, -h], [h, hi, -h], [h, lo, -h]],
+    ] {
+        quad(&mut cube, f, 0);
+    }
+    let scene = Scene {
+        name: "a floor in a closed box".into(),
+        objects: vec![
+            quad_object("ground", DMat4::IDENTITY, square(0.0, 2.0), 0),
+            quad_object("inner floor", DMat4::IDENTITY, square(0.3, 0.4), 0),
+            cube,
+        ],
+        materials: vec![Material::diffuse("grey", Vec3::splat(0.5))],
+        lights: Vec::new(),
+        environment: Some(Environment {
+            sky: Vec3::ONE,
+            sun: None,
+        }),
+        images: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let surfaces = Surfaces::new(&scene);
+    let bvh = radiosity::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
+    let probes = pick(&surfaces, &bvh, &ProbeCounts::default(), 1);
+    let inner = |p: &DVec3| (p.y - 0.3).abs() < 1e-4 && p.x.abs() < 0.41 && p.z.abs() < 0.41;
+    assert!(probes.len() >= 100, "{} probes", probes.len());
+    assert!(
+        probes.iter().all(|p| !inner(&p.point)),
+        "a probe on the hidden floor"
+    );
+    let settings = ReferenceSettings {
+        min_samples: 1024,
+        ..Default::default()
+    };
+    let hidden = estimate(
+        &scene,
+        &[(DVec3::new(0.1, 0.3, 0.2), DVec3::Y)],
+        &settings,
+        &|_, _, _| {},
+        radiosity::cancel::never(),
+    )
+    .unwrap();
+    assert_eq!(hidden[0].value, DVec3::ZERO);
 }

@@ -278,22 +278,51 @@ impl Mesh {
     }
 
     /// The element whose surface point is nearest to `p` (mesh frame) among elements facing
-    /// the side `normal` asks about (element normal · `normal` > 0.5), with the barycentric
+    /// the side `normal` asks about (normal · `normal` > 0.5), with the barycentric
     /// coordinates of the nearest point. `None` if no element faces that way.
+    ///
+    /// The nearest patch first, then the nearest of its elements: a patch is the union of
+    /// its elements, so this is the nearest element overall.
     pub fn locate(&self, p: Vec3, normal: Vec3) -> Option<(u32, [f32; 3])> {
+        self.locate_patch(p, normal)
+            .map(|patch| self.locate_in_patch(p, patch))
+    }
+
+    /// The patch whose surface point is nearest to `p` among those facing `normal` (see
+    /// [`Mesh::locate`]). Refinement splits elements but never patches, so a caller that
+    /// looks up the same points in a mesh that refines can keep these.
+    pub fn locate_patch(&self, p: Vec3, normal: Vec3) -> Option<u32> {
         let n = normal.normalize_or_zero();
-        let mut best: Option<(f32, u32, [f32; 3])> = None;
-        for (i, e) in self.elements.iter().enumerate() {
-            if e.normal.dot(n) <= 0.5 {
+        let mut best: Option<(f32, u32)> = None;
+        for (i, patch) in self.patches.iter().enumerate() {
+            if patch.normal.dot(n) <= 0.5 || patch.elements.is_empty() {
                 continue;
             }
-            let (q, bary) = closest_point_on_triangle(p, &e.verts);
+            let (q, _) = closest_point_on_triangle(p, &patch.verts);
             let d = (q - p).length_squared();
-            if best.is_none_or(|(bd, _, _)| d < bd) {
-                best = Some((d, i as u32, bary));
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, i as u32));
             }
         }
-        best.map(|(_, i, b)| (i, b))
+        best.map(|(_, i)| i)
+    }
+
+    /// The element of `patch` whose surface point is nearest to `p`, with the barycentric
+    /// coordinates of that point.
+    pub fn locate_in_patch(&self, p: Vec3, patch: u32) -> (u32, [f32; 3]) {
+        let mut best = (
+            f32::INFINITY,
+            self.patches[patch as usize].elements.start,
+            [1.0, 0.0, 0.0],
+        );
+        for i in self.patches[patch as usize].elements.clone() {
+            let (q, bary) = closest_point_on_triangle(p, &self.elements[i as usize].verts);
+            let d = (q - p).length_squared();
+            if d < best.0 {
+                best = (d, i, bary);
+            }
+        }
+        (best.1, best.2)
     }
 }
 

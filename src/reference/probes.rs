@@ -6,7 +6,8 @@
 
 use super::Surfaces;
 use crate::accel::Bvh;
-use crate::geometry::sampling::{hash, point_in_triangle, unit};
+use crate::geometry::orthonormal_basis;
+use crate::geometry::sampling::{cosine_direction, hash, point_in_triangle, unit};
 use crate::geometry::{closest_point_on_triangle, triangle_area};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -24,15 +25,21 @@ pub enum Class {
     Penumbra,
     /// Every area light blocked (while facing the point).
     Umbra,
+    /// Away from the area lights' shadows, yet every path-traced sample left it black:
+    /// no light reaches it (a space sealed off from the sky and the lights, such as the
+    /// insides of Sponza's walls), so whatever light a solution gives it leaked in. Set by
+    /// the reference, not by [`pick`].
+    Dark,
 }
 
 impl Class {
-    pub const ALL: [Class; 5] = [
+    pub const ALL: [Class; 6] = [
         Class::Interior,
         Class::Edge,
         Class::Contact,
         Class::Penumbra,
         Class::Umbra,
+        Class::Dark,
     ];
 
     pub fn name(self) -> &'static str {
@@ -42,7 +49,19 @@ impl Class {
             Class::Contact => "contact",
             Class::Penumbra => "penumbra",
             Class::Umbra => "umbra",
+            Class::Dark => "dark",
         }
+    }
+}
+
+/// The class of a probe of class `drawn` once the reference has estimated it: [`Class::Dark`]
+/// where every sample was black away from the shadows of area lights (`samples` > 0).
+pub fn with_reference(drawn: Class, value: DVec3, samples: u64) -> Class {
+    let shadow = matches!(drawn, Class::Penumbra | Class::Umbra);
+    if !shadow && samples > 0 && value == DVec3::ZERO {
+        Class::Dark
+    } else {
+        drawn
     }
 }
 
@@ -75,10 +94,13 @@ impl Default for ProbeCounts {
 }
 
 /// How the probes are drawn, for keys of cached references: a change here must change it.
-pub const SCHEME: &str = "uniform by area; edges by length, half contacts, covered points left out; shadows of area lights by area";
+pub const SCHEME: &str = "uniform by area; edges by length, half contacts, covered and hidden points left out; shadows of area lights by area; black in the reference: dark";
 
 /// Shadow rays per probe for its shadow class, to points spread over the emitters.
 const SHADOW_RAYS: u32 = 64;
+
+/// Rays per candidate point that look for a way out (see [`hidden`]).
+const HIDDEN_RAYS: u32 = 64;
 
 /// The near distance: 1 cm, or 1 % of the scene's size for scenes under a metre.
 fn near_distance(s: &Surfaces) -> f32 {
@@ -214,6 +236,29 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
 /// lights' visibility, else interior. `None` for a covered point: a face pressed against
 /// it, parallel to it within `near` / 20 (a lamp flush under a ceiling, a box's base on a
 /// floor), where nobody can look.
+/// Whether point `p` on the front of triangle `t` is hidden: each of [`HIDDEN_RAYS`]
+/// cosine-distributed rays from it meets the back of a single-sided, opaque surface first
+/// (the inside of a closed object, a floor with another laid over it). Then no light
+/// reaches it and no one can see it: its truth is 0 by construction, and a solution's
+/// light there measures only how much leaks into the object, not what anyone would see.
+/// Sponza has many such points (half of a first draw by area).
+fn hidden(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, h: u64) -> bool {
+    let n = s.normal[t as usize];
+    let basis = orthonormal_basis(n);
+    let from = p + n * s.frame.epsilon();
+    (0..HIDDEN_RAYS).all(|k| {
+        let hk = hash(h ^ 0x41DE ^ k as u64);
+        let d = cosine_direction(n, basis, unit(hk), unit(hash(hk ^ 1)));
+        bvh.closest_hit(from, d, 0.0, f32::INFINITY, t)
+            .is_some_and(|hit| {
+                let j = hit.triangle as usize;
+                s.normal[j].dot(d) >= 0.0
+                    && !s.double_sided[j]
+                    && s.transmittance.get(j).is_none_or(|&tau| tau <= 0.0)
+            })
+    })
+}
+
 fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Option<Probe> {
     let n = s.normal[t as usize];
     let point = s.frame.origin + p.as_dvec3();
@@ -224,6 +269,9 @@ fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Opti
             class,
         })
     };
+    if hidden(s, bvh, t, p, h) {
+        return None;
+    }
     // The nearest other face in front of the point (within `near`).
     let mut nearest: Option<(f32, u32)> = None;
     for (j, tri) in s.triangles.iter().enumerate() {

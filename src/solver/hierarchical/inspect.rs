@@ -91,7 +91,7 @@ impl Solver {
                     source: h.centre(mesh, l.source),
                     from_cluster: l.source.cluster().is_some(),
                     up: up as u32,
-                    irradiance: h.source_b(l) * l.factor(),
+                    irradiance: h.source_b(l, h.centre(mesh, r)) * l.factor(),
                     error: estimate.error,
                     threshold: estimate.threshold,
                 });

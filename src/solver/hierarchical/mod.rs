@@ -31,6 +31,7 @@
 
 pub(super) mod clusters;
 mod inspect;
+mod link;
 mod oracle;
 #[cfg(test)]
 mod tests;
@@ -43,6 +44,7 @@ use crate::mesh::Mesh;
 use clusters::Clusters;
 use glam::{DVec3, Vec3};
 pub use inspect::{ElementLinks, LinkView};
+use link::Link;
 use rayon::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -70,72 +72,6 @@ impl NodeId {
     /// The cluster index, if this is a cluster.
     pub fn cluster(self) -> Option<usize> {
         (self.0 & CLUSTER_BIT != 0).then_some((self.0 & !CLUSTER_BIT) as usize)
-    }
-}
-
-/// One link: 40 bytes, no heap allocation.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Link {
-    pub receiver: NodeId,
-    pub source: NodeId,
-    /// Irradiance per unit radiosity of the source at the receiver's three quadrature
-    /// points (see `transfer`); the sign bit of the first says whether a shadow boundary
-    /// crosses the link.
-    at: [f32; 3],
-    /// What the linear transfer may miss over the receiver (see `transfer`).
-    pub spread: f32,
-    /// Where on a surface source the receiver's light comes from: the barycentric weights
-    /// of its corners 1 and 2 in units of 1/65535 (see `transfer::kernel_centroid`).
-    toward: [u16; 2],
-    /// What the linear transfer misses near the receiver's corners per unit radiosity of
-    /// the source (`transfer::Transfer::miss`), for the oracle's check of a receiver's
-    /// links together.
-    pub miss: [f32; 3],
-}
-
-impl Link {
-    fn new(receiver: NodeId, source: NodeId, t: &transfer::Transfer) -> Link {
-        // The sign bit of the first value carries whether a shadow boundary crosses the
-        // link (-0.0 where the value is 0).
-        let mut at = t.values.map(f32::abs);
-        if t.partial {
-            at[0] = -at[0];
-        }
-        Link {
-            receiver,
-            source,
-            at,
-            spread: t.spread,
-            toward: t
-                .toward
-                .map(|w| (w.clamp(0.0, 1.0) * 65535.0).round() as u16),
-            miss: t.miss,
-        }
-    }
-    /// The barycentric weights of the source's corners at [`Link::toward`].
-    pub fn toward(&self) -> [f32; 3] {
-        let [u, v] = self.toward.map(|w| w as f32 / 65535.0);
-        [(1.0 - u - v).max(0.0), u, v]
-    }
-    /// The transfer at the three quadrature points.
-    pub fn values(&self) -> [f32; 3] {
-        [self.at[0].abs(), self.at[1], self.at[2]]
-    }
-    /// The transfer averaged over the receiver.
-    pub fn factor(&self) -> f32 {
-        let v = self.values();
-        (v[0] + v[1] + v[2]) / 3.0
-    }
-    /// The linear function through the quadrature values, at the receiver's corners:
-    /// 2 v_k − mean (each point lies halfway between the centroid and corner k).
-    pub fn corners(&self) -> [f32; 3] {
-        let v = self.values();
-        let m = self.factor();
-        v.map(|x| 2.0 * x - m)
-    }
-    /// A shadow boundary crosses the link.
-    pub fn partial(&self) -> bool {
-        self.at[0].is_sign_negative()
     }
 }
 
@@ -175,6 +111,47 @@ impl Octants {
     }
 }
 
+/// What a cluster sends towards each side, the dual of [`Octants`]: per axis direction
+/// (±x, ±y, ±z), the sums Σ A_i max(0, ±n_i,a) · B_i and Σ A_i max(0, ±n_i,a) over the
+/// surfaces inside. Towards unit direction w the cluster sends the radiosity of the
+/// surfaces that face w, Σ_a |w_a| · (Σ A B)_a / Σ_a |w_a| · (Σ A)_a: exact for surfaces
+/// facing along the axes. Its mean radiosity alone would send the light of a wall's lit
+/// outer face out of its dark inner face as well, when both fall in one cluster: a leak
+/// of the bright outside into a closed room (Sponza sits inside such a shell).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Facing {
+    power: [Vec3; 6],
+    area: [f32; 6],
+}
+
+impl Facing {
+    fn add_surface(&mut self, normal: Vec3, area: f32, b: Vec3) {
+        for a in 0..3 {
+            let f = Octants::face(a, normal[a] >= 0.0);
+            let projected = area * normal[a].abs();
+            self.power[f] += b * projected;
+            self.area[f] += projected;
+        }
+    }
+    fn merge(&mut self, o: &Facing) {
+        for f in 0..6 {
+            self.power[f] += o.power[f];
+            self.area[f] += o.area[f];
+        }
+    }
+    /// The radiosity sent towards unit direction `w`; `None` when no surface faces it
+    /// (or `w` is zero).
+    fn toward(&self, w: Vec3) -> Option<Vec3> {
+        let (mut p, mut a) = (Vec3::ZERO, 0.0f32);
+        for axis in 0..3 {
+            let f = Octants::face(axis, w[axis] >= 0.0);
+            p += self.power[f] * w[axis].abs();
+            a += self.area[f] * w[axis].abs();
+        }
+        (a > 0.0).then(|| p / a)
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
     Refine,
@@ -199,6 +176,8 @@ pub(super) struct Hierarchy {
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
     cluster_b: Vec<Vec3>,
+    /// What each cluster sends by direction: see [`Facing`].
+    cluster_facing: Vec<Facing>,
     /// Irradiance a cluster receives, by direction: see [`Octants`].
     cluster_h: Vec<Octants>,
     /// The leaf node of each element.
@@ -233,6 +212,7 @@ impl Hierarchy {
             .collect();
         let mut h = Hierarchy {
             cluster_b: vec![Vec3::ZERO; clusters.nodes.len()],
+            cluster_facing: vec![Facing::default(); clusters.nodes.len()],
             cluster_h: vec![Octants::default(); clusters.nodes.len()],
             clusters,
             links: Vec::new(),
@@ -300,12 +280,19 @@ impl Hierarchy {
         }
     }
 
-    /// The radiosity a link's source sends it: a cluster's mean, or a surface node's
-    /// linear fit at the link's kernel centroid (`transfer::kernel_centroid`, barycentric
-    /// weights of the node's corners), never negative.
-    fn source_b(&self, l: &Link) -> Vec3 {
+    /// The radiosity a link's source sends to a receiver centred at `at`: what a cluster
+    /// sends that way ([`Facing`]; its mean where nothing in it faces that way), or a
+    /// surface node's linear fit at the link's kernel centroid
+    /// (`transfer::kernel_centroid`, barycentric weights of the node's corners), never
+    /// negative.
+    fn source_b(&self, l: &Link, at: Vec3) -> Vec3 {
         match l.source.cluster() {
-            Some(c) => self.cluster_b[c],
+            Some(c) => {
+                let w = (at - self.clusters.nodes[c].centre).normalize_or_zero();
+                self.cluster_facing[c]
+                    .toward(w)
+                    .unwrap_or(self.cluster_b[c])
+            }
             None => {
                 let b = &self.node_corners[l.source.0 as usize];
                 let w = l.toward();
@@ -383,15 +370,25 @@ impl Hierarchy {
         for c in (0..self.clusters.nodes.len()).rev() {
             let mut s = Vec3::ZERO;
             let mut a = 0.0;
+            let mut facing = Facing::default();
             for &k in self.clusters.children_of(c) {
                 let area = match k.cluster() {
-                    Some(j) => self.clusters.nodes[j].area,
-                    None => self.node_area[k.0 as usize],
+                    Some(j) => {
+                        facing.merge(&self.cluster_facing[j]);
+                        self.clusters.nodes[j].area
+                    }
+                    None => {
+                        let n = k.0 as usize;
+                        let normal = mesh.patches[self.node_patch[n] as usize].normal;
+                        facing.add_surface(normal, self.node_area[n], self.node_b[n]);
+                        self.node_area[n]
+                    }
                 };
                 s += self.b(k) * area;
                 a += area;
             }
             self.cluster_b[c] = if a > 0.0 { s / a } else { Vec3::ZERO };
+            self.cluster_facing[c] = facing;
         }
     }
 
@@ -416,8 +413,8 @@ impl Hierarchy {
                     let cluster = &self.clusters.nodes[c];
                     let at = cluster.centre;
                     for l in group {
-                        let e = self.source_b(l) * l.factor();
-                        if l.spread.is_infinite() {
+                        let e = self.source_b(l, at) * l.factor();
+                        if l.spread().is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
                             // carries the mean irradiance over the cluster's surfaces,
                             // arriving from every side.
@@ -427,8 +424,9 @@ impl Hierarchy {
                         }
                     }
                 } else {
+                    let at = centre(r);
                     for l in group {
-                        let b = self.source_b(l);
+                        let b = self.source_b(l, at);
                         let c = l.corners();
                         for k in 0..3 {
                             h[k] += b * c[k];
@@ -596,7 +594,7 @@ impl Solver {
     /// converged answer moves only within their tolerance (on the Cornell box, 6 links in
     /// 2.5 M differ after the later rounds, the errors against the reference not at all,
     /// and the sweeps drop from 21 to 17).
-    pub(super) fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
+    fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
         let saved = (
             h.node_b.clone(),
             h.node_corners.clone(),

@@ -189,7 +189,7 @@ impl View<'_> {
     }
 
     fn kernel_error(&self, l: &Link) -> f32 {
-        self.reflectance(l.receiver) * l.spread * self.source_b(l.source)
+        self.reflectance(l.receiver) * l.spread() * self.source_b(l.source)
     }
 
     /// Splits the receiver of a group of links whose linear transfers together miss the
@@ -210,7 +210,7 @@ impl View<'_> {
         let mut miss = [Vec3::ZERO; 3];
         for l in group.iter().filter(|l| l.source.cluster().is_none()) {
             let b = self.h.b(l.source);
-            for (m, g) in miss.iter_mut().zip(l.miss) {
+            for (m, g) in miss.iter_mut().zip(l.miss()) {
                 *m += b * g;
             }
         }
@@ -260,7 +260,7 @@ impl View<'_> {
         // (Judging a small receiving cluster's near pairs by the power they may carry let
         // tiny detail keep sampled transfers, and a furnace lined with slivers then missed
         // its closed form by 6 % at the slivers: `tests/hard_geometry.rs`.)
-        let error = if l.spread.is_infinite() && rho > 0.0 {
+        let error = if l.spread().is_infinite() && rho > 0.0 {
             f32::INFINITY
         } else {
             kernel + variation
