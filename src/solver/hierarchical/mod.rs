@@ -14,8 +14,9 @@
 //!   (B_s grows as light spreads), and the solve is done when it changes nothing.
 //! - **sweep** (Jacobi over the links, then push–pull): pull B up the hierarchy as area
 //!   means and, over each surface node, the slope of the linear fit to its leaves; gather
-//!   H at every node over its links, each source sending its linear B at the point the
-//!   receiver sees it best (the kernel-weighted centroid the link keeps); push H down (a
+//!   H at every node over its links, each surface source sending its linear B at the
+//!   point the receiver sees it best (the kernel-weighted centroid the link keeps), each
+//!   cluster the radiosity of its surfaces that face the receiver ([`Facing`]); push H down (a
 //!   leaf receives the sum over its ancestors, clusters included) and set B_leaf =
 //!   E'_leaf + ρ_leaf · H; repeat until the area-weighted change per sweep is below the
 //!   tolerance.
@@ -119,7 +120,7 @@ impl Octants {
 /// outer face out of its dark inner face as well, when both fall in one cluster: a leak
 /// of the bright outside into a closed room (Sponza sits inside such a shell).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(super) struct Facing {
+struct Facing {
     power: [Vec3; 6],
     area: [f32; 6],
 }

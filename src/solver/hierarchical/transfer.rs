@@ -18,7 +18,9 @@
 //!   the oracle also judges a receiver's links together (`oracle`).
 //! - clusters (Sillion 1995) are seen through their projected area P(ω) (see
 //!   [`projected_area`]: exact for a flat cluster, the isotropic A/4 for a closed one): a
-//!   cluster of mean radiosity B emits B·P(ω)/π W/sr towards ω; a receiving cluster's
+//!   cluster whose surfaces facing ω have radiosity B(ω) emits B(ω)·P(ω)/π W/sr towards
+//!   ω (`Facing` in the sweeps: its mean B would leak a wall's lit side through its dark
+//!   one); a receiving cluster's
 //!   factor is the irradiance on a plane facing the source, shared out to its surfaces by
 //!   their orientation when it is pushed down (`Octants`). For a cluster link, `spread` is
 //!   the range of the unoccluded kernel between any two points of the ends' bounding
