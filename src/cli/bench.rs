@@ -354,13 +354,13 @@ pub fn convergence(
             (rms_max(e.iter().copied()), per_class)
         }
     };
-    // The same, for a solution on `mesh` (its Gouraud reconstruction at the points, or its
-    // elements against the elements).
     // The points' patches, located once: no method's refinement changes them.
     let patches = match &reference {
         Reference::Points { points, .. } => locate_patches(mesh, points),
         Reference::Elements(..) => Vec::new(),
     };
+    // The same, for a solution on `mesh` (its Gouraud reconstruction at the points, or its
+    // elements against the elements).
     let errors = |mesh: &crate::mesh::Mesh, values: &[Vec3]| match &reference {
         Reference::Elements(r, _) => (element_errors(values, r, &areas), Vec::new()),
         Reference::Points { points, .. } => point_stats(&probe_values_on(

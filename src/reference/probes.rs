@@ -231,17 +231,13 @@ pub fn pick(s: &Surfaces, bvh: &Bvh, counts: &ProbeCounts, seed: u64) -> Vec<Pro
     out
 }
 
-/// The class of point `p` on triangle `t`: contact or edge when another object's or the
-/// same object's face (not coplanar) is within `near`, else umbra or penumbra by the area
-/// lights' visibility, else interior. `None` for a covered point: a face pressed against
-/// it, parallel to it within `near` / 20 (a lamp flush under a ceiling, a box's base on a
-/// floor), where nobody can look.
 /// Whether point `p` on the front of triangle `t` is hidden: each of [`HIDDEN_RAYS`]
 /// cosine-distributed rays from it meets the back of a single-sided, opaque surface first
-/// (the inside of a closed object, a floor with another laid over it). Then no light
-/// reaches it and no one can see it: its truth is 0 by construction, and a solution's
-/// light there measures only how much leaks into the object, not what anyone would see.
-/// Sponza has many such points (half of a first draw by area).
+/// (the inside of a closed object whose faces point outwards, the floor under a block
+/// without a bottom face). Then no light reaches it and no one can see it: its truth is 0
+/// by construction, and a solution's light there measures only how much leaks into the
+/// object, not what anyone would see (10 of Sponza's first 198 points; the 4 under the
+/// Cornell box's blocks).
 fn hidden(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, h: u64) -> bool {
     let n = s.normal[t as usize];
     let basis = orthonormal_basis(n);
@@ -259,6 +255,11 @@ fn hidden(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, h: u64) -> bool {
     })
 }
 
+/// The class of point `p` on triangle `t`: contact or edge when another object's or the
+/// same object's face (not coplanar) is within `near`, else umbra or penumbra by the area
+/// lights' visibility, else interior. `None` for a hidden point ([`hidden`]) and for a
+/// covered one: a face pressed against it, parallel to it within `near` / 20 (a lamp flush
+/// under a ceiling, a box's base on a floor), where nobody can look.
 fn classify(s: &Surfaces, bvh: &Bvh, t: u32, p: Vec3, near: f32, h: u64) -> Option<Probe> {
     let n = s.normal[t as usize];
     let point = s.frame.origin + p.as_dvec3();
