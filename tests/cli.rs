@@ -272,6 +272,59 @@ fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
     assert!(n >= 100, "{n} probes");
     // A second bench reuses it.
     assert!(run().contains("cached"));
+
+    // A reference to another standard error is traced and cached apart, and each of its
+    // values stops at that error: σ ≤ E · max(B, 2 % of the mean B) per channel (the path
+    // tracer's stopping rule, met well within its time limit on this scene).
+    let loose = 0.03;
+    let out = succeed(
+        bin()
+            .args([
+                "bench",
+                "builtin:penumbra",
+                "--quiet",
+                "--methods",
+                "gauss-seidel",
+            ])
+            .args(["--max-elements", "400", "--adaptive-threshold", "0"])
+            .args(["--reference-error", &loose.to_string(), "--out"])
+            .arg(&d),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("reference noise, RMS per point"),
+        "{stdout}"
+    );
+    let caches: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains("reference-"))
+        .collect();
+    assert_eq!(caches.len(), 2, "{caches:?}");
+    let other = caches.iter().find(|p| **p != cache).unwrap();
+    let rows: Vec<Vec<f64>> = std::fs::read_to_string(other)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let mean = rows.iter().map(|r| r[7]).sum::<f64>() / rows.len() as f64;
+    for r in &rows {
+        assert!(r[10] <= loose * r[7].max(0.02 * mean) * 1.0001, "{r:?}");
+    }
+    let out = bin()
+        .args([
+            "bench",
+            "builtin:penumbra",
+            "--reference-error",
+            "0",
+            "--out",
+        ])
+        .arg(&d)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--reference-error"));
 }
 
 #[test]

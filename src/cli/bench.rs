@@ -31,9 +31,20 @@ enum Reference {
     Points {
         points: Vec<(DVec3, DVec3)>,
         values: Vec<Vec3>,
+        /// Each value's own standard error, when known (the path-traced reference).
+        std_errors: Option<Vec<Vec3>>,
         classes: Option<Vec<Class>>,
         label: String,
     },
+}
+
+/// Which reference `bench` measures against.
+pub struct ReferenceSpec<'a> {
+    /// `path`, `direct` or a CSV file of values.
+    pub kind: &'a str,
+    /// With `path`: the path tracer's target standard error, relative to
+    /// max(B, 2 % of the mean B) per channel.
+    pub rel_error: f64,
 }
 
 /// One row of convergence.csv.
@@ -76,6 +87,37 @@ fn print_classes(classes: &[(Class, f64, f64)]) {
     for (class, rms, max) in classes {
         println!("    {:<9} RMS {:.2e}, max {:.2e}", class.name(), rms, max);
     }
+}
+
+/// Prints the reference's own noise: the RMS over the points (overall and per class) of
+/// its standard error in the per-point metric, ‖σ‖ / ‖max(R, 0.02 · mean R)‖. A solution
+/// exactly right everywhere would show about this much error against the reference;
+/// independent errors add in squares, so sqrt(RMS² − noise²) is what is left of a
+/// measured RMS once the reference's noise is taken out.
+fn print_reference_noise(values: &[Vec3], std_errors: &[Vec3], classes: Option<&[Class]>) {
+    let shifted: Vec<Vec3> = values
+        .iter()
+        .zip(std_errors)
+        .map(|(v, s)| *v + *s)
+        .collect();
+    let noise = point_errors(&shifted, values);
+    let mut line = format!(
+        "reference noise, RMS per point: all {:.2e}",
+        rms_max(noise.iter().copied()).0
+    );
+    for c in Class::ALL {
+        let Some(classes) = classes else { break };
+        let of_class = noise.iter().zip(classes).filter(|(_, k)| **k == c);
+        if of_class.clone().next().is_some() {
+            let _ = write!(
+                line,
+                ", {} {:.2e}",
+                c.name(),
+                rms_max(of_class.map(|(e, _)| *e)).0
+            );
+        }
+    }
+    println!("{line}");
 }
 
 /// Relative errors of `values` against `reference`, area-weighted over elements:
@@ -132,13 +174,14 @@ fn rms_max(errors: impl Iterator<Item = f64>) -> (f64, f64) {
 fn compute_reference(
     scene: &Scene,
     prepared: &Prepared,
-    spec: &str,
+    spec: &ReferenceSpec,
     out: &Path,
     quiet: bool,
 ) -> Result<Reference> {
-    if spec == "path" {
-        return path_reference(scene, out, quiet);
+    if spec.kind == "path" {
+        return path_reference(scene, spec.rel_error, out, quiet);
     }
+    let spec = spec.kind;
     if spec != "direct" {
         let rows = read_table(
             Path::new(spec),
@@ -155,6 +198,7 @@ fn compute_reference(
         return Ok(Reference::Points {
             points,
             values,
+            std_errors: None,
             classes: None,
             label: format!("the reference values in {spec}"),
         });
@@ -180,13 +224,17 @@ fn compute_reference(
     Ok(Reference::Elements(solver.radiosity(), what.to_string()))
 }
 
-/// The path-traced reference at probe points picked for `scene` ([`probes::pick`]), to 1 %
-/// standard error, cached in `out` by scene and settings (`reference-KEY.csv`, with each
-/// point's class), so a second bench of the same scene reuses it.
-fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
+/// The path-traced reference at probe points picked for `scene` ([`probes::pick`]), to
+/// `rel_error` standard error, cached in `out` by scene and settings (`reference-KEY.csv`,
+/// with each point's class), so a second bench of the same scene reuses it.
+fn path_reference(scene: &Scene, rel_error: f64, out: &Path, quiet: bool) -> Result<Reference> {
     let settings = ReferenceSettings {
-        // A bound so a scene with points lit only by rare paths still finishes.
-        time_limit: Some(Duration::from_secs(600)),
+        rel_error,
+        // A bound so a scene with points lit only by rare paths still finishes (10 minutes
+        // at the default 1 %; a tighter reference needs (1 %/rel_error)² as many samples).
+        time_limit: Some(Duration::from_secs_f64(
+            600.0 * (0.01 / rel_error).powi(2).max(1.0),
+        )),
         ..Default::default()
     };
     let counts = ProbeCounts::default();
@@ -200,7 +248,9 @@ fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
     };
     if let Ok(rows) = read_table(
         &cache,
-        &["x", "y", "z", "nx", "ny", "nz", "class", "r", "g", "b"],
+        &[
+            "x", "y", "z", "nx", "ny", "nz", "class", "r", "g", "b", "sr", "sg", "sb",
+        ],
     ) {
         let points = rows
             .iter()
@@ -214,6 +264,10 @@ fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
             .iter()
             .map(|r| Vec3::new(r[7] as f32, r[8] as f32, r[9] as f32))
             .collect();
+        let std_errors = rows
+            .iter()
+            .map(|r| Vec3::new(r[10] as f32, r[11] as f32, r[12] as f32))
+            .collect();
         if !quiet {
             eprintln!("reference: {} (cached)", cache.display());
         }
@@ -221,6 +275,7 @@ fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
             label: label(rows.len(), ", cached"),
             points,
             values,
+            std_errors: Some(std_errors),
             classes: Some(classes),
         });
     }
@@ -282,6 +337,7 @@ fn path_reference(scene: &Scene, out: &Path, quiet: bool) -> Result<Reference> {
         label: label(probes.len(), ""),
         points,
         values: estimates.iter().map(|e| e.value.as_vec3()).collect(),
+        std_errors: Some(estimates.iter().map(|e| e.std_error.as_vec3()).collect()),
         classes: Some(classes),
     })
 }
@@ -311,7 +367,7 @@ pub fn convergence(
     scene: &Scene,
     options: &SolveOptions,
     methods: Option<Vec<Method>>,
-    reference: &str,
+    reference: &ReferenceSpec,
     time_limit: f64,
     out: &Path,
     quiet: bool,
@@ -332,6 +388,15 @@ pub fn convergence(
     let t = Instant::now();
     let reference = compute_reference(scene, &prepared, reference, out, quiet)?;
     let reference_seconds = t.elapsed().as_secs_f64();
+    if let Reference::Points {
+        values,
+        std_errors: Some(std_errors),
+        classes,
+        ..
+    } = &reference
+    {
+        print_reference_noise(values, std_errors, classes.as_deref());
+    }
     let areas: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
     // Overall (rms, max) and per class, of values at the reference points.
     let point_stats = |at_points: &[Vec3]| match &reference {

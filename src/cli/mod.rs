@@ -163,6 +163,11 @@ pub enum Command {
         /// x,y,z,nx,ny,nz,r,g,b of reference values.
         #[arg(long, default_value = "path")]
         reference: String,
+        /// With `--reference path`: the path tracer's target standard error, relative to
+        /// max(B, 2 % of the mean B) per channel (as `reference --rel-error`). Halving it
+        /// takes four times as long; each value is cached apart.
+        #[arg(long, default_value_t = 0.01)]
+        reference_error: f64,
         /// Output folder for convergence.csv and convergence.png.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -350,6 +355,7 @@ pub fn run(cli: Cli) -> Result<()> {
             scene,
             methods,
             reference,
+            reference_error,
             out,
             occlusion,
             segments,
@@ -357,6 +363,10 @@ pub fn run(cli: Cli) -> Result<()> {
             edits,
             options,
         } => {
+            anyhow::ensure!(
+                reference_error > 0.0 && reference_error.is_finite(),
+                "--reference-error must be a positive number, not {reference_error}"
+            );
             let s = load_scene(&scene, &options, quiet)?;
             if occlusion {
                 return bench::occlusion(&s, segments, segments_out.as_deref());
@@ -367,6 +377,10 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             // --time-limit applies per method here; 60 s when not given.
             let time_limit = options.time_limit.unwrap_or(60.0);
+            let reference = bench::ReferenceSpec {
+                kind: &reference,
+                rel_error: reference_error,
+            };
             bench::convergence(&s, &options, methods, &reference, time_limit, &out, quiet)
         }
     }

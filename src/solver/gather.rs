@@ -30,7 +30,7 @@
 //!   - The near field: a node x lies within two of its radii of (the wall beside a corner,
 //!     the floor at the foot of a block) is split down to the last level, and the last
 //!     level's nodes within twelve radii have their radiosity gathered at their centroids
-//!     in turn (one level deep, at a coarser error) instead of read from the mesh, which
+//!     in turn (two levels deep, at coarser errors) instead of read from the mesh, which
 //!     does not resolve the light within millimetres of a corner or a contact. Those
 //!     centroids are fixed points of the mesh, shared by neighbouring pixels and probes,
 //!     so their gathers are memoised ([`NearField`]).
@@ -339,8 +339,9 @@ impl Gatherer {
         self.at_depth(e, x, 0)
     }
 
-    /// [`Gatherer::at`]; `depth` 0 gathers the nearest sources' radiosity at them in turn
-    /// (see [`Gatherer::source_value`]), depth 1 takes the solution's.
+    /// [`Gatherer::at`] at `depth` levels of the near field below the point asked about:
+    /// below [`NEAR_DEPTH`] the nearest sources' radiosity is gathered at them in turn (see
+    /// [`Gatherer::source_value`]), at it the solution's is taken.
     fn at_depth(&self, e: u32, x: Vec3, depth: u8) -> Vec3 {
         let mesh = &self.mesh;
         let i = e as usize;
@@ -354,16 +355,15 @@ impl Gatherer {
         let scale = irradiance_of(self.radiosity[i], self.reflectance[i], self.emission[i]);
         // The near field's own gathers reach x through a form factor below 1 and are many:
         // they are allowed a coarser error per node.
-        let coarser = if depth > 0 { NEAR_ERROR } else { 1.0 };
-        let delta = self.settings.error * coarser * scale.max(self.floor);
+        let delta = self.settings.error * NEAR_ERROR[depth as usize] * scale.max(self.floor);
         let gathered = self.gathered((x, n, own, delta, seed), depth);
         self.emission[i] + self.reflectance[i] * (external + gathered)
     }
 
     /// The radiosity a leaf or virtual node of element `e` with centroid `c` and bounding
-    /// radius `r` sends to x through `factor`: the solution's `mean`, or, at depth 0 for a
-    /// node close to x that carries a noticeable share of its light, the gather at the
-    /// node's centroid itself. This is the near field of a corner or a contact: there the
+    /// radius `r` sends to x through `factor`: the solution's `mean`, or, below
+    /// [`NEAR_DEPTH`] for a node close to x that carries a noticeable share of its light,
+    /// the gather at the node's centroid itself. This is the near field of a corner or a contact: there the
     /// adjacent wall's light changes over millimetres and x sees that wall at a large
     /// solid angle, so the element's linear function is not enough.
     #[allow(clippy::too_many_arguments)]
@@ -632,15 +632,30 @@ const BLIND_NODE: f32 = 64.0;
 const NEAR_RADII: f32 = 2.0;
 /// A leaf or virtual node whose form factor from x exceeds [`NEAR_FACTOR`] and whose
 /// centroid lies within [`GATHER_RADII`] of its radii from x has its radiosity gathered at
-/// its centroid, with [`NEAR_ERROR`] times the error allowed per node. Measured on the
-/// Cornell box's contact points (block sides 0.1–2 mm above the floor) against the path
-/// tracer: 2 radii left them 2.6 % RMS (8.5 % max), 12 radii 1.4 % (4 %); 64× the error
-/// in those gathers changed the result by less than 0.1 % and cut the time sixfold.
+/// its centroid. Measured on the Cornell box's contact points (block sides 0.1–2 mm above
+/// the floor) against the path tracer: 2 radii left them 2.6 % RMS (8.5 % max), 12 radii
+/// 1.4 % (4 %).
 const NEAR_FACTOR: f32 = 1e-3;
 const GATHER_RADII: f32 = 12.0;
-const NEAR_ERROR: f32 = 64.0;
-/// How many times the near field is gathered in turn.
-const NEAR_DEPTH: u8 = 1;
+/// The error allowed per node, as a multiple of the point's own, in the gathers of the
+/// near field at each depth below the point (index 0 is the point itself); the near field
+/// is gathered in turn [`NEAR_DEPTH`] levels deep.
+///
+/// Why two levels: at a contact both surfaces are darker near the contact line than
+/// their elements' means (each hides part of the other's sky), and the form factor from
+/// a point there weighs the part nearest the line most, so a mean taken too close to the
+/// point is too bright. One level left the block faces 0.2–4 mm above the Cornell floor
+/// 1.07 % RMS too bright (3.1 % at worst, +1.6 % signed mean) against a 0.26 % path-traced
+/// reference (`bench builtin:cornell --reference-error 0.003`); the second level, which
+/// gathers the light of the floor points near the foot from the block face near the
+/// foot and not from its elements' means, left 0.62 % (1.6 %), at 2.4 times the time per
+/// probe point and 1.7 times per rendered pixel (the near field's gathers are shared
+/// between neighbouring pixels). The errors: 32× at the first level (64× left the
+/// contacts at 0.84 %, 8× gained 0.1 % for twice the time), 64× at the second (256× was
+/// 15 % faster, but each node could then carry 13 % of the light: a furnace's corners
+/// came out 0.7 % too bright, against 0.08 % now; `tests/hard_geometry.rs`).
+const NEAR_ERROR: [f32; 3] = [1.0, 32.0, 64.0];
+const NEAR_DEPTH: u8 = NEAR_ERROR.len() as u8 - 1;
 
 /// Largest distance from `c` to a corner of `v`.
 fn radius(v: &[Vec3; 3], c: Vec3) -> f32 {
