@@ -223,7 +223,8 @@ fn bench_writes_curves_for_every_method() {
 #[test]
 fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
     let d = scratch_dir("cli-bench-path");
-    let run = || {
+    // The bench on the penumbra scene, with `extra` arguments.
+    let bench = |extra: &[&str]| {
         succeed(
             bin()
                 .args([
@@ -236,10 +237,14 @@ fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
                     "400",
                     "--adaptive-threshold",
                     "0",
-                    "--out",
                 ])
+                .args(extra)
+                .arg("--out")
                 .arg(&d),
-        );
+        )
+    };
+    let run = || {
+        bench(&[]);
         std::fs::read_to_string(d.join("convergence.csv")).unwrap()
     };
     let csv = run();
@@ -277,19 +282,7 @@ fn bench_against_the_truth_picks_classified_probes_and_caches_the_reference() {
     // values stops at that error: σ ≤ E · max(B, 2 % of the mean B) per channel (the path
     // tracer's stopping rule, met well within its time limit on this scene).
     let loose = 0.03;
-    let out = succeed(
-        bin()
-            .args([
-                "bench",
-                "builtin:penumbra",
-                "--quiet",
-                "--methods",
-                "gauss-seidel",
-            ])
-            .args(["--max-elements", "400", "--adaptive-threshold", "0"])
-            .args(["--reference-error", &loose.to_string(), "--out"])
-            .arg(&d),
-    );
+    let out = bench(&["--reference-error", &loose.to_string()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("reference noise, RMS per point"),

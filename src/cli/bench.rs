@@ -105,19 +105,24 @@ fn print_reference_noise(values: &[Vec3], std_errors: &[Vec3], classes: Option<&
         "reference noise, RMS per point: all {:.2e}",
         rms_max(noise.iter().copied()).0
     );
-    for c in Class::ALL {
-        let Some(classes) = classes else { break };
-        let of_class = noise.iter().zip(classes).filter(|(_, k)| **k == c);
-        if of_class.clone().next().is_some() {
-            let _ = write!(
-                line,
-                ", {} {:.2e}",
-                c.name(),
-                rms_max(of_class.map(|(e, _)| *e)).0
-            );
-        }
+    for (class, rms, _) in classes.map_or(Vec::new(), |c| per_class(&noise, c)) {
+        let _ = write!(line, ", {} {rms:.2e}", class.name());
     }
     println!("{line}");
+}
+
+/// RMS and max of `errors` over the points of each class present in `classes` (the
+/// points' classes, in the same order), in [`Class::ALL`]'s order.
+fn per_class(errors: &[f64], classes: &[Class]) -> Vec<(Class, f64, f64)> {
+    Class::ALL
+        .into_iter()
+        .filter(|k| classes.contains(k))
+        .map(|k| {
+            let of_class = errors.iter().zip(classes).filter(|(_, c)| **c == k);
+            let (rms, max) = rms_max(of_class.map(|(e, _)| *e));
+            (k, rms, max)
+        })
+        .collect()
 }
 
 /// Relative errors of `values` against `reference`, area-weighted over elements:
@@ -405,17 +410,7 @@ pub fn convergence(
             values: r, classes, ..
         } => {
             let e = point_errors(at_points, r);
-            let per_class = classes.as_ref().map_or(Vec::new(), |c| {
-                Class::ALL
-                    .iter()
-                    .filter(|k| c.contains(k))
-                    .map(|&k| {
-                        let (rms, max) =
-                            rms_max(e.iter().zip(c).filter(|(_, ck)| **ck == k).map(|(e, _)| *e));
-                        (k, rms, max)
-                    })
-                    .collect()
-            });
+            let per_class = classes.as_ref().map_or(Vec::new(), |c| per_class(&e, c));
             (rms_max(e.iter().copied()), per_class)
         }
     };

@@ -363,9 +363,9 @@ impl Gatherer {
     /// The radiosity a leaf or virtual node of element `e` with centroid `c` and bounding
     /// radius `r` sends to x through `factor`: the solution's `mean`, or, below
     /// [`NEAR_DEPTH`] for a node close to x that carries a noticeable share of its light,
-    /// the gather at the node's centroid itself. This is the near field of a corner or a contact: there the
-    /// adjacent wall's light changes over millimetres and x sees that wall at a large
-    /// solid angle, so the element's linear function is not enough.
+    /// the gather at the node's centroid itself. This is the near field of a corner or a
+    /// contact: there the adjacent wall's light changes over millimetres and x sees that
+    /// wall at a large solid angle, so the element's linear function is not enough.
     #[allow(clippy::too_many_arguments)]
     fn source_value(
         &self,
