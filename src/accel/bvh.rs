@@ -10,29 +10,29 @@ const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
 /// Traversal stack depth; a binned SAH tree over 2³² triangles stays far below this
 /// unless degenerate, and the builder caps depth at `MAX_DEPTH` to keep it so.
-const STACK: usize = 96;
+pub(super) const STACK: usize = 96;
 const MAX_DEPTH: usize = 80;
 
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    lo: Vec3,
-    hi: Vec3,
+pub(super) struct Node {
+    pub(super) lo: Vec3,
+    pub(super) hi: Vec3,
     /// Interior: index of the left child (right = left + 1). Leaf: first triangle.
-    start: u32,
+    pub(super) start: u32,
     /// 0 for interior nodes, else the number of triangles in the leaf.
-    count: u32,
+    pub(super) count: u32,
 }
 
 /// A triangle prepared for Möller–Trumbore: a vertex and two edges.
 #[derive(Clone, Copy, Debug)]
-struct Tri {
-    v0: Vec3,
-    e1: Vec3,
-    e2: Vec3,
+pub(super) struct Tri {
+    pub(super) v0: Vec3,
+    pub(super) e1: Vec3,
+    pub(super) e2: Vec3,
     /// Index in the caller's triangle list.
-    id: u32,
+    pub(super) id: u32,
     /// Fraction of light passing through, 0 = opaque.
-    transmittance: f32,
+    pub(super) transmittance: f32,
 }
 
 /// A ray hit: distance along the (unit or not) direction, the caller's triangle index and
@@ -48,8 +48,8 @@ pub struct Hit {
 /// Bounding volume hierarchy over a fixed set of triangles.
 #[derive(Clone, Default)]
 pub struct Bvh {
-    nodes: Vec<Node>,
-    tris: Vec<Tri>,
+    pub(super) nodes: Vec<Node>,
+    pub(super) tris: Vec<Tri>,
     /// The shadow-ray engine (`accel/wide.rs`): 4-wide, four triangles per leaf, about
     /// four times our binary tree's rate on the occlusion benchmark
     /// (examples/bvh_compare.rs).
@@ -209,113 +209,6 @@ impl Bvh {
             }
         }
         through
-    }
-
-    /// Whether no triangle other than those in `skip` (and fully transparent ones) can
-    /// meet the tetrahedron with apex `apex` and base `base`: the region every segment
-    /// from `apex` to a point of `base` sweeps. `true` proves all such segments clear (a
-    /// *shaft cull*, Haines & Wallace, "Shaft culling for efficient ray-traced radiosity",
-    /// 1991, here with the exact shaft of a point and a triangle); `false` means only
-    /// "maybe blocked". Separation is tested on the four face planes of the tetrahedron
-    /// (for nodes and triangles, with a margin of `margin`, a length: touching counts as
-    /// meeting) and on each triangle's own plane (strictly).
-    pub fn shaft_clear(&self, apex: Vec3, base: &[Vec3; 3], skip: [u32; 2], margin: f32) -> bool {
-        if self.tris.is_empty() {
-            return true;
-        }
-        // `transmittance` ignores the last 1e-4 of each segment, so the shaft that matters
-        // ends short of the base: pull the base towards the apex by that much. This lets a
-        // shaft to a wall patch standing on the floor clear the floor, which it only
-        // touches at the segments' ends.
-        let verts = [
-            apex,
-            base[0] + (apex - base[0]) * 1e-4,
-            base[1] + (apex - base[1]) * 1e-4,
-            base[2] + (apex - base[2]) * 1e-4,
-        ];
-        // Face k is opposite vertex k; its outward normal points away from that vertex.
-        let mut planes = [(Vec3::ZERO, 0.0f32); 4];
-        for (k, plane) in planes.iter_mut().enumerate() {
-            let [a, b, c] = [1, 2, 3].map(|j| verts[(k + j) % 4]);
-            let n = (b - a).cross(c - a);
-            let len = n.length();
-            if len.is_nan() || len <= 0.0 || !len.is_finite() {
-                return false; // degenerate shaft: prove nothing
-            }
-            let mut n = n / len;
-            let mut d = n.dot(a);
-            if n.dot(verts[k]) > d {
-                n = -n;
-                d = -d;
-            }
-            // The opposite vertex must lie strictly inside, else the tetrahedron is flat.
-            if d - n.dot(verts[k]) <= margin {
-                return false;
-            }
-            *plane = (n, d + margin);
-        }
-        let mut lo = apex;
-        let mut hi = apex;
-        for v in &verts[1..] {
-            lo = lo.min(*v);
-            hi = hi.max(*v);
-        }
-        let (lo, hi) = (lo - margin, hi + margin);
-        let mut stack = [0u32; STACK];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let node = &self.nodes[stack[sp] as usize];
-            if node.hi.cmplt(lo).any() || node.lo.cmpgt(hi).any() {
-                continue;
-            }
-            let centre = (node.lo + node.hi) * 0.5;
-            let half = (node.hi - node.lo) * 0.5;
-            if planes
-                .iter()
-                .any(|(n, d)| n.dot(centre) - n.abs().dot(half) > *d)
-            {
-                continue;
-            }
-            if node.count == 0 {
-                if sp + 2 > STACK {
-                    return false;
-                }
-                stack[sp] = node.start;
-                stack[sp + 1] = node.start + 1;
-                sp += 2;
-                continue;
-            }
-            for tri in &self.tris[node.start as usize..(node.start + node.count) as usize] {
-                if tri.id == skip[0] || tri.id == skip[1] || tri.transmittance >= 1.0 {
-                    continue;
-                }
-                let tv = [tri.v0, tri.v0 + tri.e1, tri.v0 + tri.e2];
-                if planes
-                    .iter()
-                    .any(|(n, d)| tv.iter().all(|v| n.dot(*v) > *d))
-                {
-                    continue;
-                }
-                // The triangle's own plane.
-                let n = tri.e1.cross(tri.e2);
-                let len = n.length();
-                if len > 0.0 && len.is_finite() {
-                    let n = n / len;
-                    let d = n.dot(tri.v0);
-                    let side = verts.map(|v| n.dot(v) - d);
-                    // Strictly one side: no margin here, so that a floor that a shaft
-                    // starts just above (by the solver's ε) is cleared.
-                    if side.iter().all(|s| *s > 0.0) || side.iter().all(|s| *s < 0.0) {
-                        continue;
-                    }
-                } else {
-                    continue; // zero area: blocks nothing (as in `transmittance`)
-                }
-                return false;
-            }
-        }
-        true
     }
 
     /// Whether anything opaque or partly opaque lies on the open segment `a`–`b`.

@@ -8,18 +8,21 @@
 //! Embree 4's rate, twice obvhs's own compressed 8-wide traversal and four times our
 //! binary tree (`cargo run --release --example bvh_compare -- SCENE`). The
 //! binary tree (binned SAH, Wald 2007; Möller–Trumbore 1997) serves what the wide one does
-//! not: shaft culling against the exact point-to-patch tetrahedron, closest hits, and the
+//! not: shaft tests against the exact point-to-patch tetrahedron (`shaft.rs`: clear, or
+//! blocked whole by one opaque triangle), closest hits, and the
 //! baseline of that comparison. Both know per-triangle transmittance (alpha-masked
 //! cut-outs and glass attenuate shadow rays instead of blocking them) and skip the
 //! shooter's and receiver's own triangles.
 
 mod bvh;
+mod shaft;
 mod wide;
 
 use crate::geometry::sampling::{hash, point_in_triangle, unit};
 use crate::geometry::triangle_area;
 
 pub use bvh::{Bvh, Hit};
+pub use shaft::Shaft;
 
 /// `n` segments between pairs of points drawn uniformly by area over `triangles` (a fixed
 /// hash sequence, so every run and every ray engine sees the same segments), each with the

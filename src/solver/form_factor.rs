@@ -110,6 +110,27 @@ pub(in crate::solver) fn form_factor_weight(p: Vec3, n: Vec3, tri: &[Vec3; 3]) -
 /// uses the point formula.
 const WEIGHT_FAR_FIELD: f32 = 0.25;
 
+/// [`point_to_polygon`] for a triangle, to within `max_error`: the point formula wherever
+/// the bound on its error (see [`far_field_with_bound`]) is under `max_error` and the
+/// triangle's bounding radius under [`WEIGHT_FAR_FIELD`] of its distance, the exact contour
+/// elsewhere. The final gather asks each node's form factor to a tolerance set by the
+/// light it carries.
+pub(in crate::solver) fn point_to_triangle_within(
+    p: Vec3,
+    n: Vec3,
+    tri: &[Vec3; 3],
+    max_error: f32,
+) -> f32 {
+    let rel = tri.map(|v| v - p);
+    match far_field_with_bound(&rel, n, WEIGHT_FAR_FIELD) {
+        Some((f, bound)) if bound <= max_error => f,
+        _ => {
+            let (clipped, m) = clip_to_hemisphere(&rel, n);
+            contour_integral(&clipped[..m], n)
+        }
+    }
+}
+
 /// Below this ratio of a polygon's bounding radius to its distance, [`point_to_polygon`]
 /// uses the point formula.
 const FAR_FIELD: f32 = 5e-3;
@@ -118,6 +139,14 @@ const FAR_FIELD: f32 = 5e-3;
 /// the upper hemisphere and whose bounding radius is under `ratio` of its distance;
 /// `None` otherwise.
 fn far_field(rel: &[Vec3], n: Vec3, ratio: f32) -> Option<f32> {
+    far_field_with_bound(rel, n, ratio).map(|(f, _)| f)
+}
+
+/// [`far_field`] and a bound on its error: (r/d)² · A/(π d²), r the polygon's bounding
+/// radius about its centroid, d the centroid's distance and A its area. Over random
+/// triangles in every direction above the horizon with r/d up to 1/4, the point
+/// formula's error reaches half this bound (`the_point_formula_stays_within_its_bound`).
+fn far_field_with_bound(rel: &[Vec3], n: Vec3, ratio: f32) -> Option<(f32, f32)> {
     if rel.len() < 3 || rel.iter().any(|r| n.dot(*r) < 0.0) {
         return None;
     }
@@ -155,7 +184,9 @@ fn far_field(rel: &[Vec3], n: Vec3, ratio: f32) -> Option<f32> {
         return None;
     }
     let w = centroid / d2.sqrt();
-    Some((n.dot(w).max(0.0) * area.dot(w).abs() / (PI * d2)).clamp(0.0, 1.0))
+    let solid = total / (PI * d2);
+    let f = (n.dot(w).max(0.0) * area.dot(w).abs() / (PI * d2)).clamp(0.0, 1.0);
+    Some((f, r2 / d2 * solid))
 }
 
 /// Sutherland–Hodgman clip of a convex polygon (relative to the receiving point) to the
@@ -514,5 +545,37 @@ mod tests {
             worst.0,
             worst.1
         );
+    }
+
+    #[test]
+    fn the_point_formula_stays_within_its_bound() {
+        // Random triangles in every direction above the horizon, from 100 to 4 of their
+        // radii away: the point formula's error against the f64 contour stays under the
+        // bound `far_field_with_bound` reports (measured: under half of it, in f64 over
+        // 2·10⁵ such triangles).
+        let mut worst = 0.0f64;
+        for i in 0..20_000u64 {
+            let h = hash(i ^ 0xfa12);
+            let u = |k: u64| unit(hash(h ^ k));
+            let dir = Vec3::new(u(1) - 0.5, u(2) - 0.5, u(3).powi(3)).normalize();
+            let tri = [
+                Vec3::new(u(4), u(5), u(6)) - 0.5,
+                Vec3::new(u(7), u(8), u(9)) - 0.5,
+                Vec3::new(u(10), u(11), u(12)) - 0.5,
+            ];
+            let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+            let r = tri.iter().map(|v| (*v - c).length()).fold(0.0, f32::max);
+            let d = r / 10f32.powf(-2.0 + 1.39 * u(13));
+            let rel = tri.map(|v| v - c + dir * d);
+            if rel.iter().any(|v| v.z < 0.0) {
+                continue;
+            }
+            if let Some((f, bound)) = far_field_with_bound(&rel, Vec3::Z, WEIGHT_FAR_FIELD) {
+                let err = (f as f64 - contour_f64(&rel, Vec3::Z)).abs();
+                // f32 rounding of the point formula itself adds a few ulps of f.
+                worst = worst.max((err - 1e-6 * f as f64) / bound as f64);
+            }
+        }
+        assert!(worst <= 0.6, "error {worst} of the bound");
     }
 }
