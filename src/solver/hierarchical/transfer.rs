@@ -32,7 +32,7 @@
 
 use super::NodeId;
 use super::clusters::{Facing, SAMPLES};
-use crate::accel::Bvh;
+use crate::accel::{Bvh, Shaft};
 use crate::geometry::sampling::{hash, stratified_point, stratum};
 use crate::solver::form_factor::point_to_polygon;
 use crate::solver::form_factor::{form_factor_weight, strata_visibility};
@@ -230,15 +230,35 @@ fn surface_to_surface(
     let skip = [rt, st];
     let base = sv.map(|v| v + sn * eps);
     let from = q.map(|x| x + rn * eps);
-    let clear = (0..3).all(|k| f[k] <= 0.0 || bvh.shaft_clear(from[k], &base, skip, eps * 0.1));
+    // What a shaft test proves from each receiver point: all of the source seen, or all
+    // of it hidden behind one opaque triangle; shadow rays go only where neither holds.
+    let proofs: [Shaft; 3] = std::array::from_fn(|k| {
+        if f[k] <= 0.0 {
+            Shaft::Clear
+        } else {
+            bvh.shaft(from[k], &base, skip, eps * 0.1)
+        }
+    });
     let mut rays = 0u32;
     let (mut visible, mut vlo, mut vhi) = ([1.0f32; 3], 1.0f32, 1.0f32);
-    if !clear {
-        // k² shadow rays from each receiver point to stratified points of the source:
-        // the kernel-weighted visibility per point, and the range over all rays.
+    if proofs.iter().any(|p| *p != Shaft::Clear) {
+        // k² shadow rays from each unproven receiver point to stratified points of the
+        // source: the kernel-weighted visibility per point, and the range over all rays.
         let sample = |k: u32, seed: u64| {
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let mut n = 0;
             let v = std::array::from_fn(|j| {
+                let proven = match proofs[j] {
+                    Shaft::Clear => Some(1.0),
+                    Shaft::Blocked => Some(0.0),
+                    Shaft::Unknown => None,
+                };
+                if let Some(v) = proven {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                    return v;
+                }
+                n += k * k;
                 let seen = strata_visibility(
                     bvh,
                     (q[j], rn),
@@ -251,7 +271,7 @@ fn surface_to_surface(
                 hi = hi.max(seen.hi);
                 seen.fraction
             });
-            (v, lo, hi, 3 * k * k)
+            (v, lo, hi, n)
         };
         let (v, lo, hi, n) = sample(2, seed);
         (visible, vlo, vhi, rays) = (v, lo, hi, n);
