@@ -385,6 +385,54 @@ fn a_blocked_shaft_has_every_segment_blocked_and_is_found() {
     );
 }
 
+/// The rules a blocker must meet, each at its threshold: a small base seen past one large
+/// triangle is blocked only when its corners' segments cross the triangle more than the
+/// margin inside its edge (measured where they cross it, not at the base, which is ten
+/// times as far here), past the first 2·10⁻⁴ of the segments (where shadow rays look), and
+/// when the triangle is opaque and not skipped.
+#[test]
+fn a_blocker_must_cover_the_shaft_by_the_margin_where_the_rays_look() {
+    let base = [
+        Vec3::new(0.05, 0.0, 1.0),
+        Vec3::new(-0.05, 0.03, 1.0),
+        Vec3::new(-0.05, -0.03, 1.0),
+    ];
+    let verdict = |tri: [Vec3; 3], transmittance: f32, skip: u32, margin: f32| {
+        Bvh::build(&[tri], &[transmittance]).shaft(Vec3::ZERO, &base, [skip, u32::MAX], margin)
+    };
+    // An edge at x = `edge` in the plane z = 0.1, the triangle reaching out to x = −10;
+    // the base's corner at x = 0.05 crosses that plane at x = 0.005.
+    let sheet = |edge: f32| {
+        [
+            Vec3::new(edge, -10.0, 0.1),
+            Vec3::new(edge, 10.0, 0.1),
+            Vec3::new(-10.0, 0.0, 0.1),
+        ]
+    };
+    assert_eq!(verdict(sheet(0.007), 0.0, u32::MAX, 1e-3), Shaft::Blocked);
+    // 0.5 mm inside where the segment crosses, 5 mm inside at the base: not enough.
+    assert_eq!(verdict(sheet(0.0055), 0.0, u32::MAX, 1e-3), Shaft::Unknown);
+    assert_eq!(verdict(sheet(0.004), 0.0, u32::MAX, 1e-6), Shaft::Unknown);
+    // A sheet across the whole shaft at height z: rays ignore the first 10⁻⁴ of a segment.
+    let across = |z: f32| {
+        [
+            Vec3::new(-10.0, -10.0, z),
+            Vec3::new(10.0, -10.0, z),
+            Vec3::new(0.0, 10.0, z),
+        ]
+    };
+    assert_eq!(verdict(across(0.01), 0.0, u32::MAX, 1e-6), Shaft::Blocked);
+    assert_eq!(verdict(across(5e-5), 0.0, u32::MAX, 1e-6), Shaft::Unknown);
+    // Glass does not block; a skipped triangle is not there.
+    assert_eq!(verdict(across(0.3), 0.5, u32::MAX, 1e-6), Shaft::Unknown);
+    assert_eq!(verdict(across(0.3), 0.0, 0, 1e-6), Shaft::Clear);
+    // NaN proves nothing.
+    assert_eq!(
+        verdict(across(0.3), 0.0, u32::MAX, f32::NAN),
+        Shaft::Unknown
+    );
+}
+
 /// Thousands of triangles with one shared centroid (a fan of slivers through a point): the
 /// builder cannot split by centroid, must still bound its depth, and every query must
 /// still find the triangles.

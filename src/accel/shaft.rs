@@ -38,7 +38,9 @@ impl Bvh {
     }
 
     /// [`Bvh::shaft_clear`], and where the shaft is not clear, whether one opaque triangle
-    /// (not in `skip`) blocks every segment from `apex` to a point of `base`. A shaft that
+    /// (not in `skip`) blocks every segment from `apex` to a point of `base` where
+    /// `Bvh::transmittance` looks (past the first 2·10⁻⁴ of it and short of its last
+    /// 10⁻⁴). A shaft that
     /// is not clear is searched on for such a triangle (among the first
     /// [`BLOCKER_SEARCH`] it meets), so this costs more than `shaft_clear` where the answer
     /// is [`Shaft::Unknown`].
@@ -46,6 +48,8 @@ impl Bvh {
         self.shaft_test((apex, base), skip, margin, true)
     }
 
+    // `!(a > b)` on purpose: true when either side is NaN, so that NaN proves nothing.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     fn shaft_test(
         &self,
         (apex, base): (Vec3, &[Vec3; 3]),
@@ -81,8 +85,9 @@ impl Bvh {
                 n = -n;
                 d = -d;
             }
-            // The opposite vertex must lie strictly inside, else the tetrahedron is flat.
-            if d - n.dot(verts[k]) <= margin {
+            // The opposite vertex must lie strictly inside, else the tetrahedron is flat
+            // (written so that NaN proves nothing).
+            if !(d - n.dot(verts[k]) > margin) {
                 return Shaft::Unknown;
             }
             *plane = (n, d + margin);
@@ -171,11 +176,17 @@ impl Bvh {
 /// blocking it all is then unlikely.
 const BLOCKER_SEARCH: u32 = 16;
 
+/// The shadow rays of `Bvh::transmittance` ignore the first 1e-4 of each segment: a
+/// blocker must be crossed past twice that.
+const FIRST_CROSSING: f32 = 2e-4;
+
 /// Whether the opaque triangle `tri` crosses every segment from `verts[0]` (the apex) to
-/// a point of the triangle `verts[1..]`, at least `margin` inside its edges and its plane
-/// at least `margin` from both ends of each segment.
+/// a point of the triangle `verts[1..]`, at least `margin` inside its edges, its plane at
+/// least `margin` from both ends of each segment and past [`FIRST_CROSSING`] of its
+/// length. Every comparison is written so that NaN proves nothing.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(a > b)`: NaN proves nothing
 fn blocks(tri: &Tri, verts: &[Vec3; 4], margin: f32) -> bool {
-    if tri.transmittance > 0.0 {
+    if !(tri.transmittance <= 0.0) {
         return false;
     }
     let apex = verts[0];
@@ -187,7 +198,7 @@ fn blocks(tri: &Tri, verts: &[Vec3; 4], margin: f32) -> bool {
     let n = n / len;
     let d = n.dot(tri.v0);
     let apex_side = n.dot(apex) - d;
-    if apex_side.abs() <= margin {
+    if !(apex_side.abs() > margin) {
         return false;
     }
     // Where each segment crosses the plane, as a multiple t ≥ 1 of the way to it: the
@@ -195,10 +206,13 @@ fn blocks(tri: &Tri, verts: &[Vec3; 4], margin: f32) -> bool {
     let mut reach = [0.0f32; 3];
     for (t, v) in reach.iter_mut().zip(&verts[1..]) {
         let side = n.dot(*v) - d;
-        if side * apex_side.signum() > -margin {
+        if !(side * apex_side.signum() < -margin) {
             return false; // not strictly beyond the plane
         }
         *t = (apex_side - side) / apex_side;
+        if !(*t * FIRST_CROSSING < 1.0) {
+            return false; // crossed where the rays do not look
+        }
     }
     let corners = [tri.v0, tri.v0 + tri.e1, tri.v0 + tri.e2];
     for k in 0..3 {
@@ -217,7 +231,7 @@ fn blocks(tri: &Tri, verts: &[Vec3; 4], margin: f32) -> bool {
         if verts[1..]
             .iter()
             .zip(reach)
-            .any(|(v, t)| m.dot(*v - apex) <= margin * t)
+            .any(|(v, t)| !(m.dot(*v - apex) > margin * t))
         {
             return false;
         }

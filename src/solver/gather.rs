@@ -27,8 +27,9 @@
 //!     crosses whole is hidden (`accel::Shaft`), and what a node's test proves holds for
 //!     its children. A node carrying more than 2 δ that no test proves either way is split;
 //!     below that, stratified shadow rays estimate it (4; 1 for nodes under δ in the near
-//!     field's gathers), and where they disagree (a shadow boundary crosses the node) it is
-//!     split while it carries more than δ; at the last level a disagreeing node takes 16.
+//!     field's gathers; 16 for a node over 16 δ that cannot be split), and where they
+//!     disagree (a shadow boundary crosses the node) it is split while it carries more
+//!     than δ; at the last level a disagreeing node takes 16.
 //!   - Form factors are exact (Lambert's contour integral), or the point formula where its
 //!     error bound is under a quarter of δ over the light the node carries.
 //!   - The near field: a node x lies within two of its radii of (the wall beside a corner,
@@ -578,8 +579,14 @@ impl Gatherer {
             let base = verts.map(|v| v + normal * eps);
             self.bvh.shaft(at.from, &base, skip, eps * 0.1)
         };
+        // A node about to be split is tested first: a hidden one is skipped whole, and
+        // what the test proves holds for its children.
+        let open = || match shaft() {
+            Shaft::Blocked => Visit::Skip,
+            seen => Visit::Open(seen),
+        };
         if can_open && f * value.spread() > delta {
-            return Visit::Open(shaft());
+            return open();
         }
         let carried = f * value.mean.element_sum();
         if carried <= 0.0 {
@@ -597,10 +604,10 @@ impl Gatherer {
             && carried > delta
             && (c - x).length() < NEAR_RADII * radius(verts, c)
         {
-            return Visit::Open(shaft());
+            return open();
         }
-        // A node carrying at most δ can be off by all of it: a shaft test would cost more
-        // than its rays.
+        // A node carrying at most δ can be off by all of it: a shaft test of its own would
+        // cost more than its rays (it still has what an ancestor's proved).
         let seen = if carried > delta { shaft() } else { seen };
         match seen {
             Shaft::Clear => return Visit::Add(f),

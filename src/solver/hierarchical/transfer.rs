@@ -232,16 +232,12 @@ fn surface_to_surface(
     let from = q.map(|x| x + rn * eps);
     // What a shaft test proves from each receiver point: all of the source seen, or all
     // of it hidden behind one opaque triangle; shadow rays go only where neither holds.
-    let proofs: [Shaft; 3] = std::array::from_fn(|k| {
-        if f[k] <= 0.0 {
-            Shaft::Clear
-        } else {
-            bvh.shaft(from[k], &base, skip, eps * 0.1)
-        }
-    });
+    // `None`: the point sees none of the source, and its visibility does not matter.
+    let proofs: [Option<Shaft>; 3] =
+        std::array::from_fn(|k| (f[k] > 0.0).then(|| bvh.shaft(from[k], &base, skip, eps * 0.1)));
     let mut rays = 0u32;
     let (mut visible, mut vlo, mut vhi) = ([1.0f32; 3], 1.0f32, 1.0f32);
-    if proofs.iter().any(|p| *p != Shaft::Clear) {
+    if proofs.iter().any(|p| p.is_some_and(|p| p != Shaft::Clear)) {
         // k² shadow rays from each unproven receiver point to stratified points of the
         // source: the kernel-weighted visibility per point, and the range over all rays.
         let sample = |k: u32, seed: u64| {
@@ -249,9 +245,10 @@ fn surface_to_surface(
             let mut n = 0;
             let v = std::array::from_fn(|j| {
                 let proven = match proofs[j] {
-                    Shaft::Clear => Some(1.0),
-                    Shaft::Blocked => Some(0.0),
-                    Shaft::Unknown => None,
+                    None => return 1.0,
+                    Some(Shaft::Clear) => Some(1.0),
+                    Some(Shaft::Blocked) => Some(0.0),
+                    Some(Shaft::Unknown) => None,
                 };
                 if let Some(v) = proven {
                     lo = lo.min(v);
