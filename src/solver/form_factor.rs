@@ -508,6 +508,19 @@ mod tests {
         assert_eq!(angle_between(0.0, -1.0), std::f32::consts::PI);
     }
 
+    /// A triangle of unit size about the origin from the draws `u(4)` … `u(12)`, its
+    /// centroid and its bounding radius about it.
+    fn random_triangle(u: &impl Fn(u64) -> f32) -> ([Vec3; 3], Vec3, f32) {
+        let tri = [
+            Vec3::new(u(4), u(5), u(6)) - 0.5,
+            Vec3::new(u(7), u(8), u(9)) - 0.5,
+            Vec3::new(u(10), u(11), u(12)) - 0.5,
+        ];
+        let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+        let r = tri.iter().map(|v| (*v - c).length()).fold(0.0, f32::max);
+        (tri, c, r)
+    }
+
     /// Lambert's contour integral in f64 with libm's atan2, for a polygon (relative to the
     /// point) wholly above the horizon: the reference.
     fn contour_f64(rel: &[Vec3], n: Vec3) -> f64 {
@@ -534,13 +547,7 @@ mod tests {
             let h = hash(i);
             let u = |k: u64| unit(hash(h ^ k));
             let dir = Vec3::new(u(1) - 0.5, u(2) - 0.5, 0.2 + u(3)).normalize();
-            let tri = [
-                Vec3::new(u(4), u(5), u(6)) - 0.5,
-                Vec3::new(u(7), u(8), u(9)) - 0.5,
-                Vec3::new(u(10), u(11), u(12)) - 0.5,
-            ];
-            let c = (tri[0] + tri[1] + tri[2]) / 3.0;
-            let r = tri.iter().map(|v| (*v - c).length()).fold(0.0, f32::max);
+            let (tri, c, r) = random_triangle(&u);
             let area = 0.5 * (tri[1] - tri[0]).cross(tri[2] - tri[0]).length();
             let ratio = 10f32.powf(-0.5 - 4.5 * u(13));
             let d = r / ratio;
@@ -575,13 +582,7 @@ mod tests {
             let h = hash(i ^ 0xfa12);
             let u = |k: u64| unit(hash(h ^ k));
             let dir = Vec3::new(u(1) - 0.5, u(2) - 0.5, u(3).powi(3)).normalize();
-            let tri = [
-                Vec3::new(u(4), u(5), u(6)) - 0.5,
-                Vec3::new(u(7), u(8), u(9)) - 0.5,
-                Vec3::new(u(10), u(11), u(12)) - 0.5,
-            ];
-            let c = (tri[0] + tri[1] + tri[2]) / 3.0;
-            let r = tri.iter().map(|v| (*v - c).length()).fold(0.0, f32::max);
+            let (tri, c, r) = random_triangle(&u);
             let d = r / 10f32.powf(-2.0 + 1.39 * u(13));
             let rel = tri.map(|v| v - c + dir * d);
             if rel.iter().any(|v| v.z < 0.0) {
