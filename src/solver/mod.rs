@@ -25,6 +25,7 @@
 //! [`Solver::stats`] reports. Results do not depend on the thread count: parallel work is
 //! per element with per-pair deterministic sampling, and sums are reduced in a fixed order.
 
+mod anderson;
 pub mod direct;
 mod edits;
 pub mod form_factor;

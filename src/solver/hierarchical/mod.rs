@@ -17,9 +17,11 @@
 //!   H at every node over its links, each surface source sending its linear B at the
 //!   point the receiver sees it best (the kernel-weighted centroid the link keeps), each
 //!   cluster the radiosity of its surfaces that face the receiver ([`Facing`]); push H down (a
-//!   leaf receives the sum over its ancestors, clusters included) and set B_leaf =
-//!   E'_leaf + ρ_leaf · H; repeat until the area-weighted change per sweep is below the
-//!   tolerance.
+//!   leaf receives the sum over its ancestors, clusters included, scaled back where
+//!   its links add up to more than one hemisphere: [`Hierarchy::conservation_caps`])
+//!   and set B_leaf = E'_leaf + ρ_leaf · H; take Anderson's step from the last sweeps
+//!   ([`anderson`](super::anderson): Jacobi alone needs thousands of sweeps at ρ̄ near
+//!   1); repeat until the area-weighted change per sweep is below the tolerance.
 //!
 //! A link's factor does not depend on ρ or E, so an edit of a material only sweeps again
 //! (and lets the oracle look again): no existing form factor is recomputed. Each leaf
@@ -38,6 +40,7 @@ mod oracle;
 mod tests;
 pub(super) mod transfer;
 
+use super::anderson::Anderson;
 use super::types::Stop;
 use super::{Solver, sum3d};
 use crate::geometry::closest_point_on_triangle;
@@ -183,9 +186,16 @@ pub(super) struct Hierarchy {
     cluster_h: Vec<Octants>,
     /// The leaf node of each element.
     element_node: Vec<u32>,
+    /// Per element, the factor its gathered H is scaled by so that its links' form
+    /// factors sum to at most 1 (see [`Hierarchy::conservation_caps`]); empty or stale
+    /// (another length) while a refinement round changes the links.
+    leaf_cap: Vec<f32>,
     /// Largest reflectance channel per patch (edits change it).
     patch_reflectance: Vec<f32>,
     stage: Stage,
+    /// The sweeps' acceleration ([`Anderson`]), restarted whenever the links, the
+    /// elements or the materials change.
+    acceleration: Anderson,
     /// The refinement round under way.
     round: Option<oracle::Round>,
     /// The largest oracle threshold so far (see `Solver::held_threshold`).
@@ -224,8 +234,10 @@ impl Hierarchy {
             node_corners: Vec::new(),
             node_h: Vec::new(),
             element_node: Vec::new(),
+            leaf_cap: Vec::new(),
             patch_reflectance,
             stage: Stage::Refine,
+            acceleration: Anderson::default(),
             round: None,
             threshold: 0.0,
             sweeps: 0,
@@ -483,10 +495,40 @@ impl Hierarchy {
     }
 
     /// [`Hierarchy::leaf_irradiance_linear`] with the negative values that extrapolated
-    /// linear functions can reach (beside a shadow boundary) cut off at zero.
+    /// linear functions can reach (beside a shadow boundary) cut off at zero, and scaled
+    /// by the leaf's conservation cap.
     fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
+        let cap = match self.leaf_cap.len() == mesh.elements.len() {
+            true => self.leaf_cap[element],
+            false => 1.0,
+        };
         self.leaf_irradiance_linear(mesh, element, down)
             .max(Vec3::ZERO)
+            * cap
+    }
+
+    /// Sets each leaf's conservation cap, 1 / max(1, T), where T is the total form factor
+    /// its links hand it: the irradiance it gathers when every source has B = 1. A point
+    /// sees at most its whole hemisphere, so T ≤ 1 (T = 1 inside a closed scene). Links
+    /// that refinement left coarse can deliver more: a linear transfer extrapolated from
+    /// its quadrature points into a corner the receiver shares with the source, a
+    /// cluster's push by direction to a tilted surface. Such a leaf's H is scaled back to
+    /// a whole hemisphere. Without it, nvpro's Cornell box (ρ = 0.999, whose link budget
+    /// stops refinement early: T up to 2.9 at its corners and on its spheres) gained
+    /// light with every sweep, without bound; the built-in box has T ≤ 1.06.
+    fn conservation_caps(&mut self, mesh: &Mesh) {
+        let ones = vec![DVec3::ONE; mesh.elements.len()];
+        self.pull(mesh, &ones);
+        self.gather(mesh);
+        let down = self.cluster_down();
+        self.leaf_cap = (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|e| {
+                let t = self.leaf_irradiance_linear(mesh, e, &down).x;
+                if t > 1.0 { 1.0 / t } else { 1.0 }
+            })
+            .collect();
     }
 
     /// The links there are: the solution's, or during a refinement round those it holds.
@@ -525,10 +567,16 @@ impl Solver {
                 None => {}
                 // Done when a round at the full threshold changed nothing.
                 Some(false) if h.sweeps > 0 => self.phase = super::Phase::Done,
-                Some(_) => h.stage = Stage::Sweep,
+                Some(changed) => {
+                    h.stage = Stage::Sweep;
+                    h.acceleration.restart();
+                    if changed || h.leaf_cap.len() != self.mesh.elements.len() {
+                        h.conservation_caps(&self.mesh);
+                    }
+                }
             },
             Stage::Sweep => {
-                let change = self.sweep(h);
+                let change = self.sweep(h, true);
                 h.sweeps += 1;
                 self.note_first_solution(h);
                 self.stats.residual = Some(change);
@@ -545,8 +593,10 @@ impl Solver {
         Ok(())
     }
 
-    /// One Jacobi sweep with push–pull; returns the area-weighted relative change of B.
-    fn sweep(&mut self, h: &mut Hierarchy) -> f64 {
+    /// One Jacobi sweep with push–pull, then (if `accelerate`) Anderson's step from it;
+    /// returns the area-weighted relative change of B the sweep made (the residual of
+    /// the iterate it started from).
+    fn sweep(&mut self, h: &mut Hierarchy, accelerate: bool) -> f64 {
         let mesh = &self.mesh;
         h.pull(mesh, &self.radiosity);
         h.gather(mesh);
@@ -557,14 +607,23 @@ impl Solver {
             .with_min_len(1024)
             .map(|e| h.leaf_irradiance(mesh, e, &down).as_dvec3())
             .collect();
+        let swept: Vec<DVec3> = gathered
+            .iter()
+            .enumerate()
+            .map(|(e, hh)| source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3())
+            .collect();
         let (mut changed, mut total) = (0.0f64, 0.0f64);
-        for (e, (hh, old)) in gathered.iter().zip(&mut self.radiosity).enumerate() {
-            let b = source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3();
+        for (e, (b, old)) in swept.iter().zip(&self.radiosity).enumerate() {
             let a = mesh.elements[e].area as f64;
-            changed += sum3d((b - *old).abs()) * a;
+            changed += sum3d((*b - *old).abs()) * a;
             total += sum3d(b.abs()) * a;
-            *old = b;
         }
+        self.radiosity = if accelerate {
+            let area: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
+            h.acceleration.next(&self.radiosity, swept, &area)
+        } else {
+            swept
+        };
         // Kept for edits: B = E' + ρ H answers a reflectance change at once (`edits`).
         self.gathered = gathered;
         if total > 0.0 { changed / total } else { 0.0 }
@@ -603,7 +662,10 @@ impl Solver {
         );
         h.links = links;
         h.links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
-        self.sweep(h);
+        // The caps belong to the links of the last round, not to these.
+        let caps = std::mem::take(&mut h.leaf_cap);
+        self.sweep(h, false);
+        h.leaf_cap = caps;
         h.links = Vec::new();
         (h.node_b, h.node_corners, h.cluster_b) = saved;
         self.note_first_solution(h);
@@ -641,6 +703,7 @@ impl Solver {
                 .update_reflectance(edited.iter().copied(), |root| {
                     rho[roots[root as usize] as usize]
                 });
+            h.acceleration.restart();
             if h.round.is_none() {
                 h.stage = Stage::Sweep;
             }
