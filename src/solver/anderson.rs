@@ -12,8 +12,8 @@
 //!
 //! γ = argmin_γ ‖f_k − ΔF γ‖,   x_{k+1} = G(x_k) − ΔG γ.
 //!
-//! For a linear G this is GMRES over the window's directions (Walker & Ni, §2): the slow
-//! modes go in a few sweeps. The norm is area-weighted over the elements (the light a
+//! For a linear G and an unlimited window this is GMRES (Walker & Ni, Theorem 2.2); with
+//! a window of a few columns it stays close to it, and the slow modes go in a few sweeps. The norm is area-weighted over the elements (the light a
 //! surface carries), the least squares are solved through the normal equations in f64
 //! with a relative ridge of 10⁻¹⁰ (m ≤ 5 columns), and the window restarts whenever the
 //! residual grows, so a step never does worse for long than the plain sweep would.
@@ -53,6 +53,13 @@ impl Anderson {
     /// The next iterate from the current one, `x`, and its sweep's image `g` = G(x);
     /// `weight` is each element's area.
     pub fn next(&mut self, x: &[DVec3], g: Vec<DVec3>, weight: &[f32]) -> Vec<DVec3> {
+        if self
+            .last
+            .as_ref()
+            .is_some_and(|(f0, _, _)| f0.len() != x.len())
+        {
+            self.restart(); // another set of elements: the history does not apply
+        }
         let f: Vec<DVec3> = g.iter().zip(x).map(|(g, x)| *g - *x).collect();
         let norm = dot(&f, &f, weight).sqrt();
         match self.last.take() {

@@ -22,7 +22,9 @@ pub struct LinkView {
     /// clusters count on above the patch).
     pub up: u32,
     /// The irradiance it carries to the receiver, W/m² per channel: its transfer averaged
-    /// over the receiver times the radiosity the source sends it.
+    /// over the receiver times the radiosity the source sends it (before the element's
+    /// conservation cap, which scales all of its links alike where they add up to more
+    /// than one hemisphere).
     pub irradiance: Vec3,
     /// The oracle's error estimate and the threshold it is held to, W/m² of B at the
     /// receiver (infinite where the ends' bounding spheres overlap).

@@ -514,9 +514,15 @@ impl Hierarchy {
     /// its quadrature points into a corner the receiver shares with the source, a
     /// cluster's push by direction to a tilted surface. Such a leaf's H is scaled back to
     /// a whole hemisphere. Without it, nvpro's Cornell box (ρ = 0.999, whose link budget
-    /// stops refinement early: T up to 2.9 at its corners and on its spheres) gained
+    /// stops refinement early: T up to 3.7 at its corners and on its spheres) gained
     /// light with every sweep, without bound; the built-in box has T ≤ 1.06.
-    fn conservation_caps(&mut self, mesh: &Mesh) {
+    ///
+    /// T sums the links' transfers with their signs: a linear transfer can dip below zero
+    /// at a corner of its receiver, and a source's linear fit can send a little more than
+    /// its brightest leaf, so the caps bound the light a leaf takes without proving the
+    /// sweeps a contraction. A capped leaf's links are all scaled alike, whichever of them
+    /// brought the excess. Leaves the node values at `radiosity`, as a pull does.
+    fn conservation_caps(&mut self, mesh: &Mesh, radiosity: &[DVec3]) {
         let ones = vec![DVec3::ONE; mesh.elements.len()];
         self.pull(mesh, &ones);
         self.gather(mesh);
@@ -529,6 +535,8 @@ impl Hierarchy {
                 if t > 1.0 { 1.0 / t } else { 1.0 }
             })
             .collect();
+        // The oracle and the inspector read the node values before the next sweep.
+        self.pull(mesh, radiosity);
     }
 
     /// The links there are: the solution's, or during a refinement round those it holds.
@@ -570,12 +578,16 @@ impl Solver {
                 Some(changed) => {
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
-                    if changed || h.leaf_cap.len() != self.mesh.elements.len() {
-                        h.conservation_caps(&self.mesh);
+                    if changed {
+                        h.conservation_caps(&self.mesh, &self.radiosity);
                     }
                 }
             },
             Stage::Sweep => {
+                // Leaves split in a round that kept its links: caps of another length.
+                if h.leaf_cap.len() != self.mesh.elements.len() {
+                    h.conservation_caps(&self.mesh, &self.radiosity);
+                }
                 let change = self.sweep(h, true);
                 h.sweeps += 1;
                 self.note_first_solution(h);
