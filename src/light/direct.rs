@@ -26,6 +26,7 @@ pub const SKY_RAYS: u32 = 64;
 
 /// Irradiance (W/m² per channel) at point `x` with normal `n` on scene triangle `own`, and
 /// the number of rays cast. `x` and `n` are in `frame`; light positions are world space.
+/// The sky takes [`SKY_RAYS`] rays.
 pub fn irradiance(
     frame: &Frame,
     bvh: &Bvh,
@@ -34,6 +35,18 @@ pub fn irradiance(
     n: Vec3,
     own: u32,
     seed: u64,
+) -> (Vec3, u32) {
+    irradiance_with_sky_rays(frame, bvh, external, (x, n, own), seed, SKY_RAYS)
+}
+
+/// [`irradiance`] with `sky_rays` rays for the sky (rounded down to a square grid).
+pub fn irradiance_with_sky_rays(
+    frame: &Frame,
+    bvh: &Bvh,
+    external: &ExternalLight,
+    (x, n, own): (Vec3, Vec3, u32),
+    seed: u64,
+    sky_rays: u32,
 ) -> (Vec3, u32) {
     let from = x + n * frame.epsilon();
     let far = frame.far();
@@ -96,8 +109,9 @@ pub fn irradiance(
             }
         }
         if env.sky.max_element() > 0.0 {
-            let open = sky_fraction(bvh, from, n, own, far, seed);
-            rays += SKY_RAYS;
+            let k = (sky_rays.max(1) as f32).sqrt() as u32;
+            let open = sky_fraction(bvh, (from, n, own), far, seed, k);
+            rays += k * k;
             h += env.sky * (std::f32::consts::PI * open);
         }
     }
@@ -137,9 +151,9 @@ pub fn spot_attenuation(cos_angle: f64, inner: f64, outer: f64) -> f32 {
 }
 
 /// Fraction of cosine-weighted directions above (`from`, `n`) that escape the scene.
-fn sky_fraction(bvh: &Bvh, from: Vec3, n: Vec3, own: u32, far: f32, seed: u64) -> f32 {
+/// One ray per cell of a k × k stratified grid.
+fn sky_fraction(bvh: &Bvh, (from, n, own): (Vec3, Vec3, u32), far: f32, seed: u64, k: u32) -> f32 {
     let (t, b) = orthonormal_basis(n);
-    let k = (SKY_RAYS as f32).sqrt() as u32;
     let mut open = 0.0;
     for i in 0..k {
         for j in 0..k {

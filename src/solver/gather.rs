@@ -9,7 +9,11 @@
 //!
 //!   B(x) = E + ρ · (H_ext(x) + Σ_s F(x → s) · V(x, s) · B_s)
 //!
-//! - H_ext: punctual lights, sun and sky at x itself (`light::direct::irradiance`).
+//! - H_ext: punctual lights, sun and sky at x itself (`light::direct`), the sky by
+//!   [`POINT_SKY_RAYS`] stratified rays at the point asked about: seen through an opening
+//!   of a few percent of the hemisphere (Sponza's atrium from its galleries), the 64 rays
+//!   the solver's elements take hit it once or twice, and the point's value swung by tens
+//!   of percent with them.
 //! - The sum runs over the scene's surfaces as a hierarchy seen from x: the cluster tree
 //!   above the patches (`hierarchical::clusters`), the patches' element quadtrees, and
 //!   below each leaf element a few levels of virtual midpoint subdivision. A node is taken
@@ -58,7 +62,7 @@ use super::hierarchical::transfer::projected_area;
 use crate::accel::{Bvh, Shaft};
 use crate::geometry::sampling::{hash, stratified_point};
 use crate::light::ExternalLight;
-use crate::light::direct::irradiance;
+use crate::light::direct::{SKY_RAYS, irradiance_with_sky_rays};
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -376,7 +380,15 @@ impl Gatherer {
         let seed = hash(
             x.x.to_bits() as u64 ^ (x.y.to_bits() as u64) << 21 ^ (x.z.to_bits() as u64) << 42,
         );
-        let (external, _) = irradiance(&mesh.frame(), &self.bvh, &self.external, x, n, own, seed);
+        let sky_rays = if depth == 0 { POINT_SKY_RAYS } else { SKY_RAYS };
+        let (external, _) = irradiance_with_sky_rays(
+            &mesh.frame(),
+            &self.bvh,
+            &self.external,
+            (x, n, own),
+            seed,
+            sky_rays,
+        );
         let scale = irradiance_of(self.radiosity[i], self.reflectance[i], self.emission[i]);
         // The near field's own gathers reach x through a form factor below 1 and are many:
         // they are allowed a coarser error per node.
@@ -690,6 +702,10 @@ impl Gatherer {
         unoccluded * through / used as f32
     }
 }
+
+/// Sky rays at the point asked about (a 32 × 32 stratified grid; the near field's own
+/// gathers take the solver's [`SKY_RAYS`]).
+const POINT_SKY_RAYS: u32 = 1024;
 
 /// How far, relative to an element's radiosity, the linear function below it may reach at
 /// its corners (see [`limited_corners`]).
