@@ -51,8 +51,13 @@ impl Anderson {
     }
 
     /// The next iterate from the current one, `x`, and its sweep's image `g` = G(x);
-    /// `weight` is each element's area.
-    pub fn next(&mut self, x: &[DVec3], g: Vec<DVec3>, weight: &[f32]) -> Vec<DVec3> {
+    /// `weight(e)` is element e's area.
+    pub fn next(
+        &mut self,
+        x: &[DVec3],
+        g: Vec<DVec3>,
+        weight: impl Fn(usize) -> f32 + Sync,
+    ) -> Vec<DVec3> {
         if self
             .last
             .as_ref()
@@ -61,7 +66,7 @@ impl Anderson {
             self.restart(); // another set of elements: the history does not apply
         }
         let f: Vec<DVec3> = g.iter().zip(x).map(|(g, x)| *g - *x).collect();
-        let norm = dot(&f, &f, weight).sqrt();
+        let norm = dot(|e| f[e], |e| f[e], &weight, f.len()).sqrt();
         match self.last.take() {
             Some((_, _, last_norm)) if norm > GROWTH * last_norm => self.columns.clear(),
             Some((f0, g0, _)) => {
@@ -75,7 +80,7 @@ impl Anderson {
             }
             None => {}
         }
-        let gamma = self.coefficients(&f, weight);
+        let gamma = self.coefficients(&f, &weight);
         let mut next = g.clone();
         if let Some(gamma) = gamma {
             next.par_iter_mut()
@@ -94,7 +99,11 @@ impl Anderson {
 
     /// γ minimising ‖f − ΔF γ‖ (normal equations, Cholesky with a ridge); `None` without
     /// columns or when they are degenerate.
-    fn coefficients(&self, f: &[DVec3], weight: &[f32]) -> Option<Vec<f64>> {
+    fn coefficients(
+        &self,
+        f: &[DVec3],
+        weight: &(impl Fn(usize) -> f32 + Sync),
+    ) -> Option<Vec<f64>> {
         let m = self.columns.len();
         if m == 0 {
             return None;
@@ -102,9 +111,9 @@ impl Anderson {
         let mut a = vec![vec![0.0f64; m]; m];
         let mut b = vec![0.0f64; m];
         for (i, (di, _)) in self.columns.iter().enumerate() {
-            b[i] = dot_mixed(di, f, weight);
+            b[i] = dot(|e| di[e].as_dvec3(), |e| f[e], weight, f.len());
             for (j, (dj, _)) in self.columns.iter().enumerate().take(i + 1) {
-                let v = dot_f32(di, dj, weight);
+                let v = dot(|e| di[e].as_dvec3(), |e| dj[e].as_dvec3(), weight, f.len());
                 a[i][j] = v;
                 a[j][i] = v;
             }
@@ -146,32 +155,24 @@ fn cholesky_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     Some(b)
 }
 
-/// Area-weighted inner product, summed per chunk in a fixed order.
-fn weighted_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+/// Area-weighted inner product Σ_e w(e) u(e) · v(e) over `n` elements, summed per chunk
+/// in a fixed order.
+fn dot(
+    u: impl Fn(usize) -> DVec3 + Sync,
+    v: impl Fn(usize) -> DVec3 + Sync,
+    w: &(impl Fn(usize) -> f32 + Sync),
+    n: usize,
+) -> f64 {
     (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             (c * CHUNK..((c + 1) * CHUNK).min(n))
-                .map(&term)
+                .map(|e| u(e).dot(v(e)) * w(e) as f64)
                 .sum::<f64>()
         })
         .collect::<Vec<f64>>()
         .iter()
         .sum()
-}
-
-fn dot(u: &[DVec3], v: &[DVec3], w: &[f32]) -> f64 {
-    weighted_sum(u.len(), |e| u[e].dot(v[e]) * w[e] as f64)
-}
-
-fn dot_mixed(u: &[Vec3], v: &[DVec3], w: &[f32]) -> f64 {
-    weighted_sum(u.len(), |e| u[e].as_dvec3().dot(v[e]) * w[e] as f64)
-}
-
-fn dot_f32(u: &[Vec3], v: &[Vec3], w: &[f32]) -> f64 {
-    weighted_sum(u.len(), |e| {
-        u[e].as_dvec3().dot(v[e].as_dvec3()) * w[e] as f64
-    })
 }
 
 #[cfg(test)]
@@ -227,7 +228,7 @@ mod tests {
             steps += 1;
             assert!(steps <= 10, "still {} off after 10 steps", error(&x));
             let g = apply(&x);
-            x = acc.next(&x, g, &weight);
+            x = acc.next(&x, g, |e| weight[e]);
         }
     }
 

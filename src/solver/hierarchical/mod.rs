@@ -498,9 +498,10 @@ impl Hierarchy {
     /// linear functions can reach (beside a shadow boundary) cut off at zero, and scaled
     /// by the leaf's conservation cap.
     fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
-        let cap = match self.leaf_cap.len() == mesh.elements.len() {
-            true => self.leaf_cap[element],
-            false => 1.0,
+        let cap = if self.leaf_cap.len() == mesh.elements.len() {
+            self.leaf_cap[element]
+        } else {
+            1.0
         };
         self.leaf_irradiance_linear(mesh, element, down)
             .max(Vec3::ZERO)
@@ -631,8 +632,8 @@ impl Solver {
             total += sum3d(b.abs()) * a;
         }
         self.radiosity = if accelerate {
-            let area: Vec<f32> = mesh.elements.iter().map(|e| e.area).collect();
-            h.acceleration.next(&self.radiosity, swept, &area)
+            let area = |e: usize| mesh.elements[e].area;
+            h.acceleration.next(&self.radiosity, swept, area)
         } else {
             swept
         };
