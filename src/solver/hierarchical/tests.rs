@@ -298,17 +298,23 @@ fn an_edit_leaves_every_cluster_with_the_largest_reflectance_below_it() {
 /// A wall's two faces in one cluster: the lit outer face (normal +z, B = 1) and the dark
 /// inner one (−z, B = 0). Towards +z the cluster sends what the outer face sends, towards
 /// −z nothing: its mean, 0.5, had sent the outside's light into the room (Sponza's
-/// shell). With one B on every face, every direction gets that B, so a furnace stays
-/// exact.
+/// shell). Sideways, where nothing faces, it sends the mean. With one B on every face,
+/// every direction gets that B, so a furnace stays exact: the sender record's areas are
+/// rounded to 1/65535 of the largest, which only weighs faces of one B against each other.
 #[test]
 fn a_cluster_sends_what_its_surfaces_facing_the_receiver_send() {
     let mut wall = Facing::default();
     wall.add_surface(Vec3::Z, 2.0, Vec3::ONE);
     wall.add_surface(-Vec3::Z, 2.0, Vec3::ZERO);
-    assert_eq!(wall.toward(Vec3::Z), Some(Vec3::ONE));
-    assert_eq!(wall.toward(-Vec3::Z), Some(Vec3::ZERO));
-    assert_eq!(wall.toward(Vec3::X), None, "nothing faces sideways");
-    let slanted = wall.toward(Vec3::new(1.0, 0.0, 1.0).normalize()).unwrap();
+    let wall = Sender::new(&wall, Vec3::ZERO);
+    assert_eq!(wall.toward(Vec3::Z), Vec3::ONE);
+    assert_eq!(wall.toward(-Vec3::Z), Vec3::ZERO);
+    assert_eq!(
+        wall.toward(Vec3::X),
+        Vec3::splat(0.5),
+        "nothing faces sideways"
+    );
+    let slanted = wall.toward(Vec3::new(1.0, 0.0, 1.0).normalize());
     assert!((slanted - Vec3::ONE).abs().max_element() < 1e-6);
     let mut uniform = Facing::default();
     for n in [
@@ -321,14 +327,21 @@ fn a_cluster_sends_what_its_surfaces_facing_the_receiver_send() {
         child.add_surface(n, 0.7, Vec3::splat(0.3));
         uniform.merge(&child);
     }
+    let uniform = Sender::new(&uniform, Vec3::ZERO);
     for k in 0..200u64 {
         use crate::geometry::sampling::{hash, unit};
         let z = 1.0 - 2.0 * unit(hash(k));
         let phi = std::f32::consts::TAU * unit(hash(k ^ 9));
         let r = (1.0 - z * z).max(0.0).sqrt();
         let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-        if let Some(b) = uniform.toward(w) {
-            assert!((b - Vec3::splat(0.3)).abs().max_element() < 1e-6, "{w} {b}");
-        }
+        let b = uniform.toward(w);
+        assert!((b - Vec3::splat(0.3)).abs().max_element() < 1e-6, "{w} {b}");
     }
+}
+
+/// The record the gather reads of a cluster is two cache lines, whatever its index.
+#[test]
+fn a_sender_is_two_cache_lines() {
+    assert_eq!(std::mem::size_of::<Sender>(), 96);
+    assert_eq!(std::mem::align_of::<Sender>(), 32);
 }
