@@ -167,6 +167,10 @@ pub struct Stats {
     /// oracle was satisfied everywhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub link_budget_reached: Option<bool>,
+    /// Hierarchical: sweeps that went only through the links out of what an edit changed
+    /// (see `solver::hierarchical::incremental`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub incremental_sweeps: Option<u64>,
 }
 
 /// A live material change of one patch (see [`Solver::edit_patches`]).

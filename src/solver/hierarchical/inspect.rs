@@ -1,7 +1,7 @@
 //! What the hierarchy knows of one element, for the viewer's link inspector: the element's
 //! level in its patch's quadtree and every link that delivers its light (those of its
 //! leaf, of the leaf's ancestors up to the patch and of the clusters above the patch, since
-//! a leaf receives what all of them gather: `Hierarchy::leaf_irradiance`), each with where
+//! a leaf receives what all of them gather: `Hierarchy::leaf_irradiance_linear`, then `Hierarchy::capped`), each with where
 //! its source is, what it carries and the oracle's estimate of its error.
 
 use super::{Hierarchy, Link, NONE, NodeId};

@@ -33,6 +33,7 @@
 //! ids, links are sorted by (receiver, source), and every sum runs in that order.
 
 pub(super) mod clusters;
+mod incremental;
 mod inspect;
 mod link;
 mod oracle;
@@ -201,6 +202,16 @@ impl Sender {
     }
 }
 
+/// The moments behind a surface node's linear fit (see [`Hierarchy::pull`]), in its
+/// plane's basis (t, b): the first moments Σ A (B − B̄) (c − c̄)·t and ·b, and the second
+/// moments Σ A (c − c̄)_t², _t _b, _b² over its leaves. Kept so that an incremental sweep
+/// can pull up just the nodes above the leaves that changed.
+#[derive(Clone, Copy, Debug, Default)]
+struct Moments {
+    first: [Vec3; 2],
+    second: [f32; 3],
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
     Refine,
@@ -222,6 +233,8 @@ pub(super) struct Hierarchy {
     /// at the node's corners: a link's source sends their barycentric mix at the link's
     /// kernel centroid, read from this one array.
     node_corners: Vec<[Vec3; 3]>,
+    /// What the linear fit of each surface node is made from (see [`Moments`]).
+    node_moments: Vec<Moments>,
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
     cluster_b: Vec<Vec3>,
@@ -237,6 +250,20 @@ pub(super) struct Hierarchy {
     /// factors sum to at most 1 (see [`Hierarchy::conservation_caps`]); empty or stale
     /// (another length) while a refinement round changes the links.
     leaf_cap: Vec<f32>,
+    /// The radiosity the last full or incremental sweep started from, while the node
+    /// values, the gathered H and `Solver::gathered` are still what it computed from it
+    /// with the current links and caps (see [`incremental`]); `None` once any changes
+    /// otherwise.
+    basis: Option<Vec<DVec3>>,
+    /// The links by source, for incremental sweeps: made when one first needs it, dropped
+    /// when the links change.
+    by_source: Option<incremental::BySource>,
+    /// Each leaf's H before the cut at zero and the cap, from the last sweep (see
+    /// [`Hierarchy::leaf_irradiance_linear`]): incremental sweeps add to it.
+    leaf_linear: Vec<Vec3>,
+    /// Patches edited since the last sweep while there was a basis (see
+    /// `Solver::rebase_on_sweep_basis`).
+    edited: Vec<u32>,
     /// Largest reflectance channel per patch (edits change it).
     patch_reflectance: Vec<f32>,
     stage: Stage,
@@ -248,6 +275,8 @@ pub(super) struct Hierarchy {
     /// The largest oracle threshold so far (see `Solver::held_threshold`).
     threshold: f32,
     sweeps: u64,
+    /// Sweeps that were incremental.
+    incremental_sweeps: u64,
     started: Instant,
 }
 
@@ -280,15 +309,21 @@ impl Hierarchy {
             node_area: Vec::new(),
             node_b: Vec::new(),
             node_corners: Vec::new(),
+            node_moments: Vec::new(),
             node_h: Vec::new(),
             element_node: Vec::new(),
             leaf_cap: Vec::new(),
+            basis: None,
+            by_source: None,
+            edited: Vec::new(),
+            leaf_linear: Vec::new(),
             patch_reflectance,
             stage: Stage::Refine,
             acceleration: Anderson::default(),
             round: None,
             threshold: 0.0,
             sweeps: 0,
+            incremental_sweeps: 0,
             started: Instant::now(),
         };
         h.grow(mesh);
@@ -297,6 +332,7 @@ impl Hierarchy {
 
     /// Extends the per-node arrays to nodes the mesh gained, and maps elements to leaves.
     fn grow(&mut self, mesh: &Mesh) {
+        self.links_changed();
         let old = self.parent.len();
         let n = mesh.nodes.len();
         self.parent.resize(n, NONE);
@@ -304,6 +340,7 @@ impl Hierarchy {
         self.node_area.resize(n, 0.0);
         self.node_b.resize(n, Vec3::ZERO);
         self.node_corners.resize(n, [Vec3::ZERO; 3]);
+        self.node_moments.resize(n, Moments::default());
         self.node_h.resize(n, [Vec3::ZERO; 3]);
         if old == 0 {
             for (p, patch) in mesh.patches.iter().enumerate() {
@@ -367,90 +404,102 @@ impl Hierarchy {
     /// (c_l − c), with M = Σ_l A_l (c_l − c)(c_l − c)ᵀ in the node's plane, both moments
     /// gathered up the tree by the parallel-axis rule. A leaf's B is constant (slope 0).
     fn pull(&mut self, mesh: &Mesh, radiosity: &[DVec3]) {
-        let n = mesh.nodes.len();
-        // Per node, in its plane's basis (t, b): the first moments Σ A (B − B̄) (c − c̄)·t
-        // and ·b, and the second moments Σ A (c − c̄)_t², _t _b, _b².
-        let mut first = vec![[Vec3::ZERO; 2]; n];
-        let mut second = vec![[0.0f32; 3]; n];
+        for i in (0..mesh.nodes.len()).rev() {
+            self.pull_node(mesh, i, radiosity);
+        }
+        for c in (0..self.clusters.nodes.len()).rev() {
+            self.pull_cluster(mesh, c);
+        }
+        self.basis = None;
+    }
+
+    /// [`Hierarchy::pull`] at surface node `i`, whose children are pulled already.
+    fn pull_node(&mut self, mesh: &Mesh, i: usize, radiosity: &[DVec3]) {
         let centre = |i: usize| {
             let v = &mesh.nodes[i].verts;
             (v[0] + v[1] + v[2]) / 3.0
         };
-        for i in (0..n).rev() {
-            let node = &mesh.nodes[i];
-            self.node_b[i] = match (node.element, node.children) {
-                (Some(e), _) => {
-                    let b = radiosity[e as usize].as_vec3();
-                    self.node_corners[i] = [b; 3];
-                    b
+        let node = &mesh.nodes[i];
+        self.node_b[i] = match (node.element, node.children) {
+            (Some(e), _) => {
+                let b = radiosity[e as usize].as_vec3();
+                self.node_corners[i] = [b; 3];
+                self.node_moments[i] = Moments::default();
+                b
+            }
+            (None, Some(kids)) => {
+                let mut s = Vec3::ZERO;
+                let mut a = 0.0;
+                for k in kids {
+                    s += self.node_b[k as usize] * self.node_area[k as usize];
+                    a += self.node_area[k as usize];
                 }
-                (None, Some(kids)) => {
-                    let mut s = Vec3::ZERO;
-                    let mut a = 0.0;
-                    for k in kids {
-                        s += self.node_b[k as usize] * self.node_area[k as usize];
-                        a += self.node_area[k as usize];
-                    }
-                    let mean = if a > 0.0 { s / a } else { Vec3::ZERO };
-                    let normal = mesh.patches[self.node_patch[i] as usize].normal;
-                    let (t, b) = crate::geometry::orthonormal_basis(normal);
-                    let c = centre(i);
-                    let (mut f, mut m) = ([Vec3::ZERO; 2], [0.0f32; 3]);
-                    for k in kids {
-                        let k = k as usize;
-                        let d = centre(k) - c;
-                        let (dt, db) = (d.dot(t), d.dot(b));
-                        let area = self.node_area[k];
-                        let weighted = (self.node_b[k] - mean) * area;
-                        f[0] += first[k][0] + weighted * dt;
-                        f[1] += first[k][1] + weighted * db;
-                        m[0] += second[k][0] + area * dt * dt;
-                        m[1] += second[k][1] + area * dt * db;
-                        m[2] += second[k][2] + area * db * db;
-                    }
-                    let det = m[0] * m[2] - m[1] * m[1];
-                    let (mut gt, mut gb) = (Vec3::ZERO, Vec3::ZERO);
-                    if det > 1e-6 * (m[0] + m[2]) * (m[0] + m[2]) {
-                        gt = (f[0] * m[2] - f[1] * m[1]) / det;
-                        gb = (f[1] * m[0] - f[0] * m[1]) / det;
-                    }
-                    self.node_corners[i] = node.verts.map(|v| {
-                        let d = v - c;
-                        mean + gt * d.dot(t) + gb * d.dot(b)
-                    });
-                    (first[i], second[i]) = (f, m);
-                    mean
+                let mean = if a > 0.0 { s / a } else { Vec3::ZERO };
+                let normal = mesh.patches[self.node_patch[i] as usize].normal;
+                let (t, b) = crate::geometry::orthonormal_basis(normal);
+                let c = centre(i);
+                let (mut f, mut m) = ([Vec3::ZERO; 2], [0.0f32; 3]);
+                for k in kids {
+                    let k = k as usize;
+                    let d = centre(k) - c;
+                    let (dt, db) = (d.dot(t), d.dot(b));
+                    let area = self.node_area[k];
+                    let weighted = (self.node_b[k] - mean) * area;
+                    let below = &self.node_moments[k];
+                    f[0] += below.first[0] + weighted * dt;
+                    f[1] += below.first[1] + weighted * db;
+                    m[0] += below.second[0] + area * dt * dt;
+                    m[1] += below.second[1] + area * dt * db;
+                    m[2] += below.second[2] + area * db * db;
                 }
-                (None, None) => {
-                    self.node_corners[i] = [Vec3::ZERO; 3];
-                    Vec3::ZERO
+                let det = m[0] * m[2] - m[1] * m[1];
+                let (mut gt, mut gb) = (Vec3::ZERO, Vec3::ZERO);
+                if det > 1e-6 * (m[0] + m[2]) * (m[0] + m[2]) {
+                    gt = (f[0] * m[2] - f[1] * m[1]) / det;
+                    gb = (f[1] * m[0] - f[0] * m[1]) / det;
+                }
+                self.node_corners[i] = node.verts.map(|v| {
+                    let d = v - c;
+                    mean + gt * d.dot(t) + gb * d.dot(b)
+                });
+                self.node_moments[i] = Moments {
+                    first: f,
+                    second: m,
+                };
+                mean
+            }
+            (None, None) => {
+                self.node_corners[i] = [Vec3::ZERO; 3];
+                self.node_moments[i] = Moments::default();
+                Vec3::ZERO
+            }
+        };
+    }
+
+    /// [`Hierarchy::pull`] at cluster `c`, whose children are pulled already.
+    fn pull_cluster(&mut self, mesh: &Mesh, c: usize) {
+        let mut s = Vec3::ZERO;
+        let mut a = 0.0;
+        let mut facing = Facing::default();
+        for &k in self.clusters.children_of(c) {
+            let area = match k.cluster() {
+                Some(j) => {
+                    facing.merge(&self.cluster_facing[j]);
+                    self.clusters.nodes[j].area
+                }
+                None => {
+                    let n = k.0 as usize;
+                    let normal = mesh.patches[self.node_patch[n] as usize].normal;
+                    facing.add_surface(normal, self.node_area[n], self.node_b[n]);
+                    self.node_area[n]
                 }
             };
+            s += self.b(k) * area;
+            a += area;
         }
-        for c in (0..self.clusters.nodes.len()).rev() {
-            let mut s = Vec3::ZERO;
-            let mut a = 0.0;
-            let mut facing = Facing::default();
-            for &k in self.clusters.children_of(c) {
-                let area = match k.cluster() {
-                    Some(j) => {
-                        facing.merge(&self.cluster_facing[j]);
-                        self.clusters.nodes[j].area
-                    }
-                    None => {
-                        let n = k.0 as usize;
-                        let normal = mesh.patches[self.node_patch[n] as usize].normal;
-                        facing.add_surface(normal, self.node_area[n], self.node_b[n]);
-                        self.node_area[n]
-                    }
-                };
-                s += self.b(k) * area;
-                a += area;
-            }
-            self.cluster_b[c] = if a > 0.0 { s / a } else { Vec3::ZERO };
-            self.cluster_facing[c] = facing;
-            self.cluster_send[c] = Sender::new(&facing, self.clusters.nodes[c].centre);
-        }
+        self.cluster_b[c] = if a > 0.0 { s / a } else { Vec3::ZERO };
+        self.cluster_facing[c] = facing;
+        self.cluster_send[c] = Sender::new(&facing, self.clusters.nodes[c].centre);
     }
 
     /// Gathers H at every receiver over its links (at a surface node's corners; by
@@ -555,18 +604,16 @@ impl Hierarchy {
         h
     }
 
-    /// [`Hierarchy::leaf_irradiance_linear`] with the negative values that extrapolated
-    /// linear functions can reach (beside a shadow boundary) cut off at zero, and scaled
-    /// by the leaf's conservation cap.
-    fn leaf_irradiance(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
-        let cap = if self.leaf_cap.len() == mesh.elements.len() {
+    /// A leaf's H from [`Hierarchy::leaf_irradiance_linear`]: the negative values that
+    /// extrapolated linear functions can reach (beside a shadow boundary) cut off at zero,
+    /// and scaled by the leaf's conservation cap.
+    fn capped(&self, element: usize, linear: Vec3) -> Vec3 {
+        let cap = if self.leaf_cap.len() == self.element_node.len() {
             self.leaf_cap[element]
         } else {
             1.0
         };
-        self.leaf_irradiance_linear(mesh, element, down)
-            .max(Vec3::ZERO)
-            * cap
+        linear.max(Vec3::ZERO) * cap
     }
 
     /// Sets each leaf's conservation cap, 1 / max(1, T), where T is the total form factor
@@ -601,14 +648,26 @@ impl Hierarchy {
         self.pull(mesh, radiosity);
     }
 
+    /// Forgets what incremental sweeps keep of the links and the last sweep: the links,
+    /// the nodes or the elements changed.
+    fn links_changed(&mut self) {
+        self.basis = None;
+        self.by_source = None;
+        self.edited.clear();
+    }
+
     /// The links there are: the solution's, or during a refinement round those it holds.
     pub fn link_count(&self) -> usize {
         self.links.len() + self.round.as_ref().map_or(0, oracle::Round::links)
     }
 
-    /// Bytes the links take.
+    /// Bytes the links take, with their index by source once incremental sweeps made it.
     pub fn link_bytes(&self) -> usize {
         self.link_count() * std::mem::size_of::<Link>()
+            + self
+                .by_source
+                .as_ref()
+                .map_or(0, incremental::BySource::bytes)
     }
 }
 
@@ -627,6 +686,7 @@ impl Solver {
         self.stats.links = Some(h.link_count());
         self.stats.link_bytes = Some(h.link_bytes());
         self.stats.link_budget_reached = Some(h.threshold.is_infinite());
+        self.stats.incremental_sweeps = Some(h.incremental_sweeps);
         self.hierarchy = Some(h);
         result
     }
@@ -636,7 +696,12 @@ impl Solver {
             Stage::Refine => match self.refine_piece(h, cancel)? {
                 None => {}
                 // Done when a round at the full threshold changed nothing.
-                Some(false) if h.sweeps > 0 => self.phase = super::Phase::Done,
+                Some(false) if h.sweeps > 0 => {
+                    self.phase = super::Phase::Done;
+                    // Edits come to a converged solve: their sweeps need the links by
+                    // source, which would otherwise cost the first edit.
+                    h.index_links_by_source(&self.mesh);
+                }
                 Some(changed) => {
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
@@ -669,19 +734,38 @@ impl Solver {
 
     /// One Jacobi sweep with push–pull, then (if `accelerate`) Anderson's step from it;
     /// returns the area-weighted relative change of B the sweep made (the residual of
-    /// the iterate it started from).
+    /// the iterate it started from). Where few elements changed since the last sweep (an
+    /// edit), the sweep is incremental ([`incremental`]): the same result up to f32
+    /// rounding, through the links out of what changed.
     fn sweep(&mut self, h: &mut Hierarchy, accelerate: bool) -> f64 {
+        self.rebase_on_sweep_basis(h);
         let mesh = &self.mesh;
-        h.pull(mesh, &self.radiosity);
-        h.gather(mesh);
-        let down = h.cluster_down();
+        let incremental = accelerate
+            && h.sweep_incrementally(mesh, &self.radiosity, &mut self.gathered)
+                .is_some();
+        if incremental {
+            h.incremental_sweeps += 1;
+        } else {
+            h.pull(mesh, &self.radiosity);
+            h.gather(mesh);
+            let down = h.cluster_down();
+            let linear: Vec<Vec3> = (0..mesh.elements.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|e| h.leaf_irradiance_linear(mesh, e, &down))
+                .collect();
+            // Kept for edits: B = E' + ρ H answers a reflectance change at once (`edits`).
+            self.gathered = linear
+                .par_iter()
+                .enumerate()
+                .with_min_len(1024)
+                .map(|(e, l)| h.capped(e, *l).as_dvec3())
+                .collect();
+            h.leaf_linear = linear;
+        }
         let (source, reflectance) = (&self.source, &self.reflectance);
-        let gathered: Vec<DVec3> = (0..mesh.elements.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|e| h.leaf_irradiance(mesh, e, &down).as_dvec3())
-            .collect();
-        let swept: Vec<DVec3> = gathered
+        let swept: Vec<DVec3> = self
+            .gathered
             .iter()
             .enumerate()
             .map(|(e, hh)| source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3())
@@ -692,15 +776,37 @@ impl Solver {
             changed += sum3d((*b - *old).abs()) * a;
             total += sum3d(b.abs()) * a;
         }
-        self.radiosity = if accelerate {
+        let next = if accelerate {
             let area = |e: usize| mesh.elements[e].area;
             h.acceleration.next(&self.radiosity, swept, area)
         } else {
             swept
         };
-        // Kept for edits: B = E' + ρ H answers a reflectance change at once (`edits`).
-        self.gathered = gathered;
+        h.basis = Some(std::mem::replace(&mut self.radiosity, next));
         if total > 0.0 { changed / total } else { 0.0 }
+    }
+
+    /// Before the first sweep after an edit: takes the last sweep's input as the current
+    /// solution, except on the edited patches' elements, which keep what the edit made
+    /// of them, so that the sweep differs from the last one only through those and can be
+    /// incremental. The two differ by one sweep's change, below the tolerance once the
+    /// solve has converged. Copied here rather than at the edit, whose first update must
+    /// be quick.
+    fn rebase_on_sweep_basis(&mut self, h: &mut Hierarchy) {
+        let edited = std::mem::take(&mut h.edited);
+        let Some(basis) = h.basis.as_ref() else {
+            return;
+        };
+        if edited.is_empty() || basis.len() != self.radiosity.len() {
+            return;
+        }
+        let mut x = basis.clone();
+        for p in edited {
+            for e in self.mesh.patches[p as usize].elements.clone() {
+                x[e as usize] = self.radiosity[e as usize];
+            }
+        }
+        self.radiosity = x;
     }
 
     /// The change per sweep the sweeps stop at: the tolerance scaled by 1 − ρ̄ (Jacobi's
@@ -741,6 +847,7 @@ impl Solver {
         self.sweep(h, false);
         h.leaf_cap = caps;
         h.links = Vec::new();
+        h.links_changed();
         (h.node_b, h.node_corners, h.cluster_b) = saved;
         self.note_first_solution(h);
     }
@@ -778,6 +885,9 @@ impl Solver {
                     rho[roots[root as usize] as usize]
                 });
             h.acceleration.restart();
+            if h.basis.is_some() {
+                h.edited.extend_from_slice(edited);
+            }
             if h.round.is_none() {
                 h.stage = Stage::Sweep;
             }

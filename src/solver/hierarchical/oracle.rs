@@ -63,6 +63,9 @@ pub(super) struct Round {
     changed: bool,
     /// How many links the last preview swept (see `Solver::preview`).
     previewed: usize,
+    /// The last sweep's basis (see `Hierarchy::basis`), put back if the round changes
+    /// nothing.
+    basis: Option<Vec<glam::DVec3>>,
 }
 
 impl Round {
@@ -529,6 +532,7 @@ impl Solver {
                     let (mut links, rays) = self.initial_links(h, min_size);
                     links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                     h.links = links;
+                    h.links_changed();
                     self.stats.rays += rays;
                     changed = true;
                 }
@@ -541,6 +545,7 @@ impl Solver {
                 if threshold.is_nan() || threshold <= 0.0 || threshold.is_infinite() {
                     return Ok(Some(changed));
                 }
+                let basis = h.basis.take();
                 h.pull(&self.mesh, &self.radiosity);
                 let ambient = if h.sweeps == 0 {
                     self.ambient_estimate()
@@ -552,6 +557,7 @@ impl Solver {
                     ambient,
                     work: std::mem::take(&mut h.links),
                     changed,
+                    basis,
                     ..Default::default()
                 }
             }
@@ -564,6 +570,15 @@ impl Solver {
                 let mut kept = std::mem::take(&mut round.kept);
                 kept.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                 h.links = kept;
+                match round.basis.take() {
+                    // The same links: what the last sweep computed from its input holds,
+                    // once the node values are pulled from it again.
+                    Some(basis) if !round.changed => {
+                        h.pull(&self.mesh, &basis);
+                        h.basis = Some(basis);
+                    }
+                    _ => h.links_changed(),
+                }
                 Ok(Some(round.changed))
             }
             Ok(false) => {

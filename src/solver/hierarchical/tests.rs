@@ -345,3 +345,103 @@ fn a_sender_is_two_cache_lines() {
     assert_eq!(std::mem::size_of::<Sender>(), 96);
     assert_eq!(std::mem::align_of::<Sender>(), 32);
 }
+
+/// After an edit of one patch of a converged solve, the sweep through the links out of the
+/// edited elements hands every leaf the H a full sweep (pull, gather over every link, push)
+/// from the same iterate hands it. They differ only in how the f32 sums are grouped: a
+/// receiver's H is its old sum plus the change instead of one sum, each of its n terms
+/// rounding by 2⁻²⁴ of the running sum, so the tolerance is n · 2⁻²⁴ of the largest H with
+/// n the most links into one receiver, doubled for the push through the ancestors.
+///
+/// Both with the box refined to its oracle (links between surfaces) and cut short by a
+/// link budget, where cluster links to clusters and surfaces carry much of the light.
+#[test]
+fn an_incremental_sweep_after_an_edit_equals_the_full_sweep() {
+    incremental_against_full(HierarchySettings::default());
+    incremental_against_full(HierarchySettings {
+        max_links: 20_000,
+        ..Default::default()
+    });
+}
+
+fn incremental_against_full(settings: HierarchySettings) {
+    let budgeted = settings.max_links < 1_000_000;
+    let mut s = solver(MeshSettings::default(), settings, 1e-3);
+    s.run(None, crate::cancel::never()).unwrap();
+    // The largest patch facing up above the floor (a block's top), lit and seen by much
+    // of the box.
+    let up = |p: &crate::mesh::Patch| p.normal.y > 0.9 && p.emission == Vec3::ZERO;
+    let height = |p: &crate::mesh::Patch| s.mesh.elements[p.elements.start as usize].centroid().y;
+    let floor = s
+        .mesh
+        .patches
+        .iter()
+        .filter(|p| up(p))
+        .map(height)
+        .fold(f32::INFINITY, f32::min);
+    let (patch, _) = s
+        .mesh
+        .patches
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| up(p) && height(p) > floor + 0.05)
+        .max_by(|a, b| a.1.area.total_cmp(&b.1.area))
+        .expect("a block's top");
+    let edit = crate::solver::PatchEdit {
+        patch: patch as u32,
+        reflectance: Vec3::new(0.9, 0.1, 0.1),
+        emission: Vec3::ZERO,
+    };
+    assert!(s.edit_patches(&[edit]));
+    let mut h = s.hierarchy.take().unwrap();
+    s.rebase_on_sweep_basis(&mut h);
+    let x = s.radiosity.clone();
+    let mesh = Arc::clone(&s.mesh);
+    let before = s.gathered.clone();
+    let mut incremental = before.clone();
+    assert!(
+        h.sweep_incrementally(&mesh, &x, &mut incremental).is_some(),
+        "an edit of one patch sweeps incrementally"
+    );
+    h.pull(&mesh, &x);
+    h.gather(&mesh);
+    let down = h.cluster_down();
+    let full: Vec<DVec3> = (0..mesh.elements.len())
+        .map(|e| {
+            h.capped(e, h.leaf_irradiance_linear(&mesh, e, &down))
+                .as_dvec3()
+        })
+        .collect();
+    let clusters =
+        |id: fn(&Link) -> NodeId| h.links.iter().filter(|l| id(l).cluster().is_some()).count();
+    let (from, to) = (clusters(|l| l.source), clusters(|l| l.receiver));
+    let most_links = h
+        .links
+        .chunk_by(|a, b| a.receiver == b.receiver)
+        .map(<[_]>::len)
+        .max()
+        .unwrap();
+    let largest = full.iter().map(|h| h.max_element()).fold(0.0, f64::max);
+    let tolerance = 2.0 * most_links as f64 * 2f64.powi(-24) * largest;
+    let worst = full
+        .iter()
+        .zip(&incremental)
+        .map(|(f, i)| (*f - *i).abs().max_element())
+        .fold(0.0, f64::max);
+    let moved = full
+        .iter()
+        .zip(&before)
+        .filter(|(f, b)| (**f - **b).abs().max_element() > 10.0 * tolerance)
+        .count();
+    eprintln!(
+        "worst difference {worst:e} (tolerance {tolerance:e}, {most_links} links into one receiver); {moved} of {} leaves' H moved; {} links, {from} from clusters, {to} to clusters",
+        full.len(),
+        h.links.len()
+    );
+    if budgeted {
+        assert!(from > 0 && to > 0, "the budget leaves cluster links");
+    }
+    assert!(worst <= tolerance, "{worst} > {tolerance}");
+    // The edit moved light well beyond the patch itself.
+    assert!(moved > mesh.elements.len() / 10, "{moved} leaves' H moved");
+}

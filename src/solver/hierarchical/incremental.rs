@@ -1,0 +1,387 @@
+//! Incremental sweeps: the difference shot along the links (Chen, "Incremental radiosity",
+//! Graphics Gems II, 1991, carried along the hierarchy's links as the issue of live edits
+//! asks: a link's transfer does not depend on ρ or E, so an edit only moves light along
+//! links that exist).
+//!
+//! A full sweep computes G(x) = E' + ρ · push(gather(pull(x))) over every link. It keeps
+//! its input x as the hierarchy's basis y, with what it computed from it: the node values
+//! pull(y), the gathered H at every node and cluster, and each leaf's linear H before the
+//! cut at zero and the cap. After an edit, the next sweep starts from y with the edited
+//! elements as the edit left them (`Solver::rebase_on_sweep_basis`), so its input x differs
+//! from y on a few leaves S. Then:
+//!
+//! - pull(x) differs from pull(y) only at the nodes above S (their quadtree ancestors and
+//!   the clusters above their patches): those are pulled again, children first, from the
+//!   moments each node keeps;
+//! - the gathered H changes only at the receivers of links from those nodes, by
+//!   Σ T_l · (b_l(x) − b_l(y)) over those links (each source's new and old value at the
+//!   link's point or direction, clamped as the full gather clamps them), summed per
+//!   receiver in link order;
+//! - a leaf's linear H changes only below a receiver that changed: by the change of its
+//!   quadtree ancestors' linear H at its centroid and of what the clusters above its patch
+//!   push down; it is cut at zero and capped again, and every leaf takes B = E' + ρ H.
+//!
+//! This is the full sweep from x up to the f32 rounding of the sums (pull, gather and push
+//! are linear in B, and the clamps are applied to the new totals). It costs the links out
+//! of the changed nodes instead of all links; where more than a quarter of the elements or
+//! of the links would be touched, the full sweep is cheaper and runs instead.
+
+use super::link::Link;
+use super::{Hierarchy, NONE, NodeId, Octants, Sender};
+use crate::geometry::closest_point_on_triangle;
+use crate::mesh::Mesh;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+/// The links by source: for each surface node n the links from it are
+/// `links[start[n]..start[n + 1]]`, and for cluster c those at key `nodes + c` (link
+/// indices, ascending).
+pub(super) struct BySource {
+    nodes: usize,
+    start: Vec<u32>,
+    links: Vec<u32>,
+}
+
+impl BySource {
+    /// A counting sort of the links by source key: two passes over them.
+    pub fn build(links: &[Link], nodes: usize, clusters: usize) -> BySource {
+        let key = |id: NodeId| match id.cluster() {
+            Some(c) => nodes + c,
+            None => id.0 as usize,
+        };
+        let mut start = vec![0u32; nodes + clusters + 1];
+        for l in links {
+            start[key(l.source) + 1] += 1;
+        }
+        for k in 1..start.len() {
+            start[k] += start[k - 1];
+        }
+        let mut next = start.clone();
+        let mut by = vec![0u32; links.len()];
+        for (i, l) in links.iter().enumerate() {
+            let k = key(l.source);
+            by[next[k] as usize] = i as u32;
+            next[k] += 1;
+        }
+        BySource {
+            nodes,
+            start,
+            links: by,
+        }
+    }
+
+    fn of(&self, id: NodeId) -> &[u32] {
+        let k = match id.cluster() {
+            Some(c) => self.nodes + c,
+            None => id.0 as usize,
+        };
+        &self.links[self.start[k] as usize..self.start[k + 1] as usize]
+    }
+
+    /// Bytes it takes.
+    pub fn bytes(&self) -> usize {
+        (self.start.len() + self.links.len()) * std::mem::size_of::<u32>()
+    }
+}
+
+/// What the changed sources sent before they were pulled again: their positions in
+/// `corners` (surface nodes) and `send` (clusters), `NONE` for a source that did not
+/// change.
+struct Old {
+    at_node: Vec<u32>,
+    at_cluster: Vec<u32>,
+    corners: Vec<[Vec3; 3]>,
+    send: Vec<Sender>,
+}
+
+/// Each item's position in `items`, over `0..len` (`NONE` where absent).
+fn position_of(items: &[u32], len: usize) -> Vec<u32> {
+    let mut at = vec![NONE; len];
+    for (k, &i) in items.iter().enumerate() {
+        at[i as usize] = k as u32;
+    }
+    at
+}
+
+/// The change one receiver gathers.
+enum Change {
+    Surface(u32, [Vec3; 3]),
+    Cluster(usize, Octants),
+}
+
+impl Hierarchy {
+    /// The gathered H of a sweep from `x` through what differs from the basis: updates
+    /// the node values, the gathered H, each leaf's linear H and `gathered` (each leaf's
+    /// H) as the module documentation says; the sweep then makes `x` the basis. `None`,
+    /// with nothing changed, where there is no basis or too much changed for this to pay.
+    pub(super) fn sweep_incrementally(
+        &mut self,
+        mesh: &Mesh,
+        x: &[DVec3],
+        gathered: &mut [DVec3],
+    ) -> Option<()> {
+        let basis = self.basis.as_ref()?;
+        if basis.len() != x.len() || gathered.len() != x.len() || self.leaf_linear.len() != x.len()
+        {
+            return None;
+        }
+        let changed: Vec<usize> = (0..x.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .filter(|&e| x[e] != basis[e])
+            .collect();
+        if changed.len() > x.len() / 4 {
+            return None;
+        }
+        let (nodes, clusters) = self.above(mesh, &changed);
+        self.index_links_by_source(mesh);
+        let by_source = self.by_source.as_ref()?;
+        let reach: usize = nodes
+            .iter()
+            .map(|&n| by_source.of(NodeId::surface(n)).len())
+            .chain(
+                clusters
+                    .iter()
+                    .map(|&c| by_source.of(NodeId::of_cluster(c)).len()),
+            )
+            .sum();
+        if reach > self.links.len() / 4 {
+            return None;
+        }
+
+        // What the changed sources sent, then pull them again (children first: a child's
+        // index is larger than its parent's, in the quadtrees and in the cluster tree).
+        let old = Old {
+            at_node: position_of(&nodes, mesh.nodes.len()),
+            at_cluster: position_of(&clusters, self.clusters.nodes.len()),
+            corners: nodes
+                .iter()
+                .map(|&n| self.node_corners[n as usize])
+                .collect(),
+            send: clusters
+                .iter()
+                .map(|&c| self.cluster_send[c as usize])
+                .collect(),
+        };
+        for &n in nodes.iter().rev() {
+            self.pull_node(mesh, n as usize, x);
+        }
+        for &c in clusters.iter().rev() {
+            self.pull_cluster(mesh, c as usize);
+        }
+
+        // The links out of them, in link order (receiver, then source): marked in a
+        // bitmap over the links and read back in order, then what each receiver's
+        // gathered H changes by.
+        let by_source = self.by_source.as_ref()?;
+        let mut hit = vec![0u64; self.links.len().div_ceil(64)];
+        let sources = nodes.iter().map(|&n| NodeId::surface(n));
+        for s in sources.chain(clusters.iter().map(|&c| NodeId::of_cluster(c))) {
+            for &i in by_source.of(s) {
+                hit[i as usize / 64] |= 1 << (i % 64);
+            }
+        }
+        let mut reached = Vec::new();
+        for (w, &word) in hit.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                reached.push((w * 64) as u32 + bits.trailing_zeros());
+                bits &= bits - 1;
+            }
+        }
+        let receiver = |i: &u32| self.links[*i as usize].receiver;
+        let changes: Vec<Change> = reached
+            .par_chunk_by(|a, b| receiver(a) == receiver(b))
+            .map(|group| self.change_at(mesh, group, &old))
+            .collect();
+
+        // The change of each leaf's H below the receivers that changed: the change of its
+        // ancestors' linear H at its centroid and of what its cluster pushes down.
+        let mut surface = Vec::new();
+        let mut delta = Vec::new();
+        let mut down = vec![Octants::default(); self.clusters.nodes.len()];
+        let mut dirty_cluster = vec![false; self.clusters.nodes.len()];
+        for change in changes {
+            match change {
+                Change::Surface(r, h) => {
+                    let at = &mut self.node_h[r as usize];
+                    for k in 0..3 {
+                        at[k] += h[k];
+                    }
+                    surface.push(r);
+                    delta.push(h);
+                }
+                Change::Cluster(c, o) => {
+                    self.cluster_h[c].merge(&o);
+                    down[c] = o;
+                    dirty_cluster[c] = true;
+                }
+            }
+        }
+        for c in 0..down.len() {
+            let p = self.clusters.nodes[c].parent;
+            if p != NONE && dirty_cluster[p as usize] {
+                let above = down[p as usize];
+                down[c].merge(&above);
+                dirty_cluster[c] = true;
+            }
+        }
+        // Below a surface receiver that changed, a leaf walks up its ancestors for their
+        // changes; below a cluster that changed, it takes what the cluster pushes down.
+        let surface_at = position_of(&surface, mesh.nodes.len());
+        let mut below_surface = vec![false; mesh.nodes.len()];
+        for &r in &surface {
+            below_surface[r as usize] = true;
+        }
+        for i in 0..below_surface.len() {
+            let p = self.parent[i];
+            if p != NONE && below_surface[p as usize] {
+                below_surface[i] = true;
+            }
+        }
+        let this = &*self;
+        let moved: Vec<(usize, Vec3)> = (0..x.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .filter_map(|e| {
+                let n = this.element_node[e];
+                let element = &mesh.elements[e];
+                let c = this.clusters.patch_parent[element.patch as usize];
+                let from_cluster = c != NONE && dirty_cluster[c as usize];
+                let from_surface = n != NONE && below_surface[n as usize];
+                if !(from_cluster || from_surface) {
+                    return None;
+                }
+                // As `leaf_irradiance_linear` sums it, over the changes.
+                let mut d = Vec3::ZERO;
+                let x = element.centroid();
+                let mut k = if from_surface { n } else { NONE };
+                while k != NONE {
+                    let at = surface_at[k as usize];
+                    if at != NONE {
+                        let corners = &delta[at as usize];
+                        let (_, w) = closest_point_on_triangle(x, &mesh.nodes[k as usize].verts);
+                        d += corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2];
+                    }
+                    k = this.parent[k as usize];
+                }
+                if from_cluster {
+                    d += down[c as usize].at(element.normal);
+                }
+                Some((e, this.leaf_linear[e] + d))
+            })
+            .collect();
+        for (e, linear) in moved {
+            self.leaf_linear[e] = linear;
+            gathered[e] = self.capped(e, linear).as_dvec3();
+        }
+        Some(())
+    }
+
+    /// Makes the links' index by source if there is none.
+    pub(super) fn index_links_by_source(&mut self, mesh: &Mesh) {
+        if self.by_source.is_none() {
+            let index = BySource::build(&self.links, mesh.nodes.len(), self.clusters.nodes.len());
+            self.by_source = Some(index);
+        }
+    }
+
+    /// The surface nodes above the `changed` elements and the clusters above their
+    /// patches, each once, in ascending index order (parents first).
+    fn above(&self, mesh: &Mesh, changed: &[usize]) -> (Vec<u32>, Vec<u32>) {
+        let mut node_seen = vec![false; mesh.nodes.len()];
+        let mut cluster_seen = vec![false; self.clusters.nodes.len()];
+        let (mut nodes, mut clusters) = (Vec::new(), Vec::new());
+        for &e in changed {
+            let mut n = self.element_node[e];
+            while n != NONE && !node_seen[n as usize] {
+                node_seen[n as usize] = true;
+                nodes.push(n);
+                if self.parent[n as usize] == NONE {
+                    let patch = self.node_patch[n as usize];
+                    let mut c = if patch == NONE {
+                        NONE
+                    } else {
+                        self.clusters.patch_parent[patch as usize]
+                    };
+                    while c != NONE && !cluster_seen[c as usize] {
+                        cluster_seen[c as usize] = true;
+                        clusters.push(c);
+                        c = self.clusters.nodes[c as usize].parent;
+                    }
+                }
+                n = self.parent[n as usize];
+            }
+        }
+        nodes.sort_unstable();
+        clusters.sort_unstable();
+        (nodes, clusters)
+    }
+
+    /// What one receiver's gathered H changes by over the links at indices `group` (all
+    /// to it, in link order, all from sources that changed): the terms of
+    /// [`Hierarchy::gather`] for these links, each source's value now less what it sent
+    /// before (`old`), each clamped as the gather clamps it.
+    fn change_at(&self, mesh: &Mesh, group: &[u32], old: &Old) -> Change {
+        let r = self.links[group[0] as usize].receiver;
+        let group = group.iter().map(|&i| &self.links[i as usize]);
+        let surface_centre = |n: u32| {
+            let v = &mesh.nodes[n as usize].verts;
+            (v[0] + v[1] + v[2]) / 3.0
+        };
+        // A source's change towards `at`, and for a cluster source the unit direction
+        // from `at` to it.
+        let change = |l: &Link, at: Vec3| -> (Vec3, Option<Vec3>) {
+            match l.source.cluster() {
+                Some(c) => {
+                    let now = &self.cluster_send[c];
+                    let k = old.at_cluster[c];
+                    let w = (at - now.centre).normalize_or_zero();
+                    let then = old.send.get(k as usize).unwrap_or(now);
+                    (now.toward(w) - then.toward(w), Some(-w))
+                }
+                None => {
+                    let n = l.source.0 as usize;
+                    let now = &self.node_corners[n];
+                    let then = old.corners.get(old.at_node[n] as usize).unwrap_or(now);
+                    let w = l.toward();
+                    let mix =
+                        |b: &[Vec3; 3]| (b[0] * w[0] + b[1] * w[1] + b[2] * w[2]).max(Vec3::ZERO);
+                    (mix(now) - mix(then), None)
+                }
+            }
+        };
+        match r.cluster() {
+            Some(c) => {
+                let cluster = &self.clusters.nodes[c];
+                let at = cluster.centre;
+                let mut o = Octants::default();
+                for l in group {
+                    let (d, to_source) = change(l, at);
+                    let e = d * l.factor();
+                    if l.spread().is_infinite() {
+                        o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                    } else {
+                        let to_source = to_source.unwrap_or_else(|| {
+                            (surface_centre(l.source.0) - at).normalize_or_zero()
+                        });
+                        o.add(e, to_source);
+                    }
+                }
+                Change::Cluster(c, o)
+            }
+            None => {
+                let at = surface_centre(r.0);
+                let mut h = [Vec3::ZERO; 3];
+                for l in group {
+                    let d = change(l, at).0;
+                    let c = l.corners();
+                    for k in 0..3 {
+                        h[k] += d * c[k];
+                    }
+                }
+                Change::Surface(r.0, h)
+            }
+        }
+    }
+}
