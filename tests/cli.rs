@@ -87,6 +87,9 @@ fn solve_writes_stats_and_a_baked_glb() {
         stats["link_bytes"].as_u64().unwrap(),
         28 * stats["links"].as_u64().unwrap()
     );
+    // Converged, so the links' index by source for edits is made: a u32 per link and one
+    // per node and cluster (`solver/hierarchical/incremental.rs`).
+    assert!(stats["link_index_bytes"].as_u64().unwrap() > 4 * stats["links"].as_u64().unwrap());
     let first = stats["first_solution_seconds"].as_f64().unwrap();
     assert!(first > 0.0 && first <= stats["seconds"].as_f64().unwrap());
     let glb = std::fs::read(d.join("baked.glb")).unwrap();

@@ -167,6 +167,10 @@ pub struct Stats {
     /// oracle was satisfied everywhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub link_budget_reached: Option<bool>,
+    /// Hierarchical: bytes of the links' index by source, which sweeps after an edit go
+    /// through (made when the solve converges; 4 bytes a link and a node).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link_index_bytes: Option<usize>,
     /// Hierarchical: sweeps that went only through the links out of what an edit changed
     /// (see `solver::hierarchical::incremental`).
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -189,7 +189,15 @@ impl App {
             row("elapsed", format!("{:.2} s", s.seconds));
             if let (Some(links), Some(bytes)) = (s.links, s.link_bytes) {
                 row("links", links.to_string());
-                row("link memory", format!("{:.1} MB", bytes as f64 / 1e6));
+                let memory = match s.link_index_bytes.filter(|b| *b > 0) {
+                    Some(index) => format!(
+                        "{:.1} MB + {:.1} MB indexed by source (for edits)",
+                        bytes as f64 / 1e6,
+                        index as f64 / 1e6
+                    ),
+                    None => format!("{:.1} MB", bytes as f64 / 1e6),
+                };
+                row("link memory", memory);
                 let eps = self.solver_settings.hierarchy.link_error;
                 row(
                     "oracle ε",

@@ -661,13 +661,16 @@ impl Hierarchy {
         self.links.len() + self.round.as_ref().map_or(0, oracle::Round::links)
     }
 
-    /// Bytes the links take, with their index by source once incremental sweeps made it.
+    /// Bytes the links take.
     pub fn link_bytes(&self) -> usize {
         self.link_count() * std::mem::size_of::<Link>()
-            + self
-                .by_source
-                .as_ref()
-                .map_or(0, incremental::BySource::bytes)
+    }
+
+    /// Bytes the links' index by source takes (see [`incremental`]), once made.
+    pub fn link_index_bytes(&self) -> usize {
+        self.by_source
+            .as_ref()
+            .map_or(0, incremental::BySource::bytes)
     }
 }
 
@@ -687,6 +690,7 @@ impl Solver {
         self.stats.link_bytes = Some(h.link_bytes());
         self.stats.link_budget_reached = Some(h.threshold.is_infinite());
         self.stats.incremental_sweeps = Some(h.incremental_sweeps);
+        self.stats.link_index_bytes = Some(h.link_index_bytes());
         self.hierarchy = Some(h);
         result
     }
