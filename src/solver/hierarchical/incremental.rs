@@ -27,7 +27,7 @@
 //! of the links would be touched, the full sweep is cheaper and runs instead.
 
 use super::link::Link;
-use super::{Hierarchy, NONE, NodeId, Octants, Sender};
+use super::{Hierarchy, NONE, NodeId, Octants, Sender, sent_from_corners};
 use crate::geometry::closest_point_on_triangle;
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
@@ -344,10 +344,7 @@ impl Hierarchy {
                     let n = l.source.0 as usize;
                     let now = &self.node_corners[n];
                     let then = old.corners.get(old.at_node[n] as usize).unwrap_or(now);
-                    let w = l.toward();
-                    let mix =
-                        |b: &[Vec3; 3]| (b[0] * w[0] + b[1] * w[1] + b[2] * w[2]).max(Vec3::ZERO);
-                    (mix(now) - mix(then), None)
+                    (sent_from_corners(now, l) - sent_from_corners(then, l), None)
                 }
             }
         };

@@ -202,6 +202,14 @@ impl Sender {
     }
 }
 
+/// What a surface source whose linear B has the values `corners` at its corners sends
+/// along link `l`: that B at the point the receiver sees it best (the link's kernel
+/// centroid), never negative.
+fn sent_from_corners(corners: &[Vec3; 3], l: &Link) -> Vec3 {
+    let w = l.toward();
+    (corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2]).max(Vec3::ZERO)
+}
+
 /// The moments behind a surface node's linear fit (see [`Hierarchy::pull`]), in its
 /// plane's basis (t, b): the first moments Σ A (B − B̄) (c − c̄)·t and ·b, and the second
 /// moments Σ A (c − c̄)_t², _t _b, _b² over its leaves. Kept so that an incremental sweep
@@ -390,11 +398,7 @@ impl Hierarchy {
                 let send = &self.cluster_send[c];
                 send.toward((at - send.centre).normalize_or_zero())
             }
-            None => {
-                let b = &self.node_corners[l.source.0 as usize];
-                let w = l.toward();
-                (b[0] * w[0] + b[1] * w[1] + b[2] * w[2]).max(Vec3::ZERO)
-            }
+            None => sent_from_corners(&self.node_corners[l.source.0 as usize], l),
         }
     }
 
