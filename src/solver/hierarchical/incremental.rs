@@ -33,6 +33,10 @@ use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+/// Incremental sweeps in a row before a full one: each adds f32 rounding of about 2⁻²⁴
+/// of a receiver's sum per term to what the last full sweep summed.
+const MAX_IN_A_ROW: u32 = 32;
+
 /// The links by source: for each surface node n the links from it are
 /// `links[start[n]..start[n + 1]]`, and for cluster c those at key `nodes + c` (link
 /// indices, ascending).
@@ -120,6 +124,11 @@ impl Hierarchy {
         x: &[DVec3],
         gathered: &mut [DVec3],
     ) -> Option<()> {
+        // Each incremental sweep adds its changes to sums the last full sweep made, so
+        // their rounding adds up: a full sweep now and then starts them afresh.
+        if self.incremental_in_a_row >= MAX_IN_A_ROW {
+            return None;
+        }
         let basis = self.basis.as_ref()?;
         if basis.len() != x.len() || gathered.len() != x.len() || self.leaf_linear.len() != x.len()
         {
@@ -280,7 +289,8 @@ impl Hierarchy {
 
     /// Makes the links' index by source if there is none.
     pub(super) fn index_links_by_source(&mut self, mesh: &Mesh) {
-        if self.by_source.is_none() {
+        // Link indices and offsets are u32.
+        if self.by_source.is_none() && self.links.len() < u32::MAX as usize {
             let index = BySource::build(&self.links, mesh.nodes.len(), self.clusters.nodes.len());
             self.by_source = Some(index);
         }

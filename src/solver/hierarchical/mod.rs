@@ -269,7 +269,14 @@ pub(super) struct Hierarchy {
     /// Each leaf's H before the cut at zero and the cap, from the last sweep (see
     /// [`Hierarchy::leaf_irradiance_linear`]): incremental sweeps add to it.
     leaf_linear: Vec<Vec3>,
-    /// Patches edited since the last sweep while there was a basis (see
+    /// The last sweep met the tolerance: its input may stand for the solution (see
+    /// `Solver::rebase_on_sweep_basis`).
+    converged: bool,
+    /// An edit came while a refinement round was under way.
+    edited_in_round: bool,
+    /// Incremental sweeps since the last full one (see [`incremental`]).
+    incremental_in_a_row: u32,
+    /// Patches edited since the last sweep while there was a converged basis (see
     /// `Solver::rebase_on_sweep_basis`).
     edited: Vec<u32>,
     /// Largest reflectance channel per patch (edits change it).
@@ -324,6 +331,9 @@ impl Hierarchy {
             basis: None,
             by_source: None,
             edited: Vec::new(),
+            converged: false,
+            edited_in_round: false,
+            incremental_in_a_row: 0,
             leaf_linear: Vec::new(),
             patch_reflectance,
             stage: Stage::Refine,
@@ -704,13 +714,14 @@ impl Solver {
             Stage::Refine => match self.refine_piece(h, cancel)? {
                 None => {}
                 // Done when a round at the full threshold changed nothing.
-                Some(false) if h.sweeps > 0 => {
+                Some(false) if h.sweeps > 0 && !h.edited_in_round => {
                     self.phase = super::Phase::Done;
                     // Edits come to a converged solve: their sweeps need the links by
                     // source, which would otherwise cost the first edit.
                     h.index_links_by_source(&self.mesh);
                 }
                 Some(changed) => {
+                    h.edited_in_round = false;
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
                     if changed {
@@ -732,7 +743,8 @@ impl Solver {
                 // gathers H in f32, so its change cannot fall below f32 rounding (a few
                 // 10⁻⁸ per element): a tighter tolerance would let the sweeps cycle at
                 // that level for ever, so it is held at SWEEP_FLOOR.
-                if change <= self.sweep_tolerance().max(SWEEP_FLOOR) {
+                h.converged = change <= self.sweep_tolerance().max(SWEEP_FLOOR);
+                if h.converged {
                     h.stage = Stage::Refine;
                 }
             }
@@ -753,7 +765,9 @@ impl Solver {
                 .is_some();
         if incremental {
             h.incremental_sweeps += 1;
+            h.incremental_in_a_row += 1;
         } else {
+            h.incremental_in_a_row = 0;
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
             let down = h.cluster_down();
@@ -893,11 +907,16 @@ impl Solver {
                     rho[roots[root as usize] as usize]
                 });
             h.acceleration.restart();
-            if h.basis.is_some() {
+            // Only a converged solve may be put back on its last sweep's input: while
+            // edits keep coming (a slider dragged), the sweeps must keep moving the rest.
+            if h.basis.is_some() && h.converged {
                 h.edited.extend_from_slice(edited);
             }
             if h.round.is_none() {
                 h.stage = Stage::Sweep;
+            } else {
+                // The round may end without changing a link; the edit still needs sweeps.
+                h.edited_in_round = true;
             }
         }
     }

@@ -573,7 +573,7 @@ impl Solver {
                 match round.basis.take() {
                     // The same links: what the last sweep computed from its input holds,
                     // once the node values are pulled from it again.
-                    Some(basis) if !round.changed => {
+                    Some(basis) if !round.changed && basis.len() == self.radiosity.len() => {
                         h.pull(&self.mesh, &basis);
                         h.basis = Some(basis);
                     }

@@ -445,3 +445,62 @@ fn incremental_against_full(settings: HierarchySettings) {
     // The edit moved light well beyond the patch itself.
     assert!(moved > mesh.elements.len() / 10, "{moved} leaves' H moved");
 }
+
+/// Only a converged solve is put back on its last sweep's input before the sweep after an
+/// edit. While edits keep coming before it has converged again (a slider dragged), the
+/// sweeps start from the solution as it stands: putting it back each time would hold every
+/// unedited element at the solution before the first edit for as long as the edits come.
+#[test]
+fn edits_before_the_solve_converges_again_do_not_hold_it_back() {
+    let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
+    s.run(None, crate::cancel::never()).unwrap();
+    // The light, dimmed: a few elements, so the sweep after it is incremental, and every
+    // B changes, so that sweep does not meet the tolerance.
+    let lights: Vec<(u32, Vec3, Vec3)> = (s.mesh.patches.iter().enumerate())
+        .filter(|(_, p)| p.emission.max_element() > 0.0)
+        .map(|(i, p)| (i as u32, p.reflectance, p.emission))
+        .collect();
+    assert!(!lights.is_empty());
+    let dim = |s: &mut Solver, factor: f32| {
+        let edits: Vec<_> = lights
+            .iter()
+            .map(|&(patch, reflectance, emission)| crate::solver::PatchEdit {
+                patch,
+                reflectance,
+                emission: emission * factor,
+            })
+            .collect();
+        assert!(s.edit_patches(&edits));
+    };
+    let lit: Vec<u32> = lights
+        .iter()
+        .flat_map(|&(p, _, _)| s.mesh.patches[p as usize].elements.clone())
+        .collect();
+    // Whether the sweep about to run starts anywhere but on the lights from elsewhere
+    // than the solution as it stands.
+    let rebased = |s: &mut Solver| {
+        let before = s.radiosity.clone();
+        let mut h = s.hierarchy.take().unwrap();
+        s.rebase_on_sweep_basis(&mut h);
+        s.hierarchy = Some(h);
+        (0..before.len() as u32)
+            .filter(|e| !lit.contains(e))
+            .any(|e| s.radiosity[e as usize] != before[e as usize])
+    };
+    // Converged: the sweep after the edit starts from the last sweep's input, which
+    // differs from the solution shown (Anderson's step from it) on unedited elements.
+    dim(&mut s, 0.5);
+    assert!(
+        rebased(&mut s),
+        "a converged solve is put back on its basis"
+    );
+    s.hierarchical_work(crate::cancel::never()).unwrap();
+    let h = s.hierarchy.as_ref().unwrap();
+    assert_eq!(h.incremental_sweeps, 1, "one sweep, incremental");
+    assert!(!h.converged, "half the light is not one sweep's change");
+    dim(&mut s, 0.25);
+    assert!(
+        !rebased(&mut s),
+        "an unconverged solve is left as it stands"
+    );
+}
