@@ -27,8 +27,7 @@
 //! of the links would be touched, the full sweep is cheaper and runs instead.
 
 use super::link::Link;
-use super::{Hierarchy, NONE, NodeId, Octants, Sender, sent_from_corners};
-use crate::geometry::closest_point_on_triangle;
+use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_from_corners};
 use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -209,7 +208,6 @@ impl Hierarchy {
         let mut surface = Vec::new();
         let mut delta = Vec::new();
         let mut down = vec![Octants::default(); self.clusters.nodes.len()];
-        let mut dirty_cluster = vec![false; self.clusters.nodes.len()];
         for change in changes {
             match change {
                 Change::Surface(r, h) => {
@@ -223,18 +221,10 @@ impl Hierarchy {
                 Change::Cluster(c, o) => {
                     self.cluster_h[c].merge(&o);
                     down[c] = o;
-                    dirty_cluster[c] = true;
                 }
             }
         }
-        for c in 0..down.len() {
-            let p = self.clusters.nodes[c].parent;
-            if p != NONE && dirty_cluster[p as usize] {
-                let above = down[p as usize];
-                down[c].merge(&above);
-                dirty_cluster[c] = true;
-            }
-        }
+        self.push_down_clusters(&mut down);
         // Below a surface receiver that changed, a leaf walks up its ancestors for their
         // changes; below a cluster that changed, it takes what the cluster pushes down.
         let surface_at = position_of(&surface, mesh.nodes.len());
@@ -256,7 +246,7 @@ impl Hierarchy {
                 let n = this.element_node[e];
                 let element = &mesh.elements[e];
                 let c = this.clusters.patch_parent[element.patch as usize];
-                let from_cluster = c != NONE && dirty_cluster[c as usize];
+                let from_cluster = c != NONE && down[c as usize] != Octants::default();
                 let from_surface = n != NONE && below_surface[n as usize];
                 if !(from_cluster || from_surface) {
                     return None;
@@ -268,9 +258,7 @@ impl Hierarchy {
                 while k != NONE {
                     let at = surface_at[k as usize];
                     if at != NONE {
-                        let corners = &delta[at as usize];
-                        let (_, w) = closest_point_on_triangle(x, &mesh.nodes[k as usize].verts);
-                        d += corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2];
+                        d += linear_at(mesh, k, &delta[at as usize], x);
                     }
                     k = this.parent[k as usize];
                 }
@@ -307,20 +295,13 @@ impl Hierarchy {
             while n != NONE && !node_seen[n as usize] {
                 node_seen[n as usize] = true;
                 nodes.push(n);
-                if self.parent[n as usize] == NONE {
-                    let patch = self.node_patch[n as usize];
-                    let mut c = if patch == NONE {
-                        NONE
-                    } else {
-                        self.clusters.patch_parent[patch as usize]
-                    };
-                    while c != NONE && !cluster_seen[c as usize] {
-                        cluster_seen[c as usize] = true;
-                        clusters.push(c);
-                        c = self.clusters.nodes[c as usize].parent;
-                    }
-                }
                 n = self.parent[n as usize];
+            }
+            let mut c = self.clusters.patch_parent[mesh.elements[e].patch as usize];
+            while c != NONE && !cluster_seen[c as usize] {
+                cluster_seen[c as usize] = true;
+                clusters.push(c);
+                c = self.clusters.nodes[c as usize].parent;
             }
         }
         nodes.sort_unstable();
@@ -345,10 +326,9 @@ impl Hierarchy {
             match l.source.cluster() {
                 Some(c) => {
                     let now = &self.cluster_send[c];
-                    let k = old.at_cluster[c];
-                    let w = (at - now.centre).normalize_or_zero();
-                    let then = old.send.get(k as usize).unwrap_or(now);
-                    (now.toward(w) - then.toward(w), Some(-w))
+                    let then = old.send.get(old.at_cluster[c] as usize).unwrap_or(now);
+                    let (b, to_source) = now.seen_from(at);
+                    (b - then.seen_from(at).0, Some(to_source))
                 }
                 None => {
                     let n = l.source.0 as usize;

@@ -120,9 +120,10 @@ impl Octants {
 /// (±x, ±y, ±z), the sums Σ A_i max(0, ±n_i,a) · B_i and Σ A_i max(0, ±n_i,a) over the
 /// surfaces inside. Towards unit direction w the cluster sends the radiosity of the
 /// surfaces that face w, Σ_a |w_a| · (Σ A B)_a / Σ_a |w_a| · (Σ A)_a: exact for surfaces
-/// facing along the axes ([`Sender::toward`] is what the gather reads). Its mean radiosity alone would send the light of a wall's lit
-/// outer face out of its dark inner face as well, when both fall in one cluster: a leak
-/// of the bright outside into a closed room (Sponza sits inside such a shell).
+/// facing along the axes ([`Sender::toward`] is what the gather reads). Its mean
+/// radiosity alone would send the light of a wall's lit outer face out of its dark inner
+/// face as well, when both fall in one cluster: a leak of the bright outside into a
+/// closed room (Sponza sits inside such a shell).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Facing {
     power: [Vec3; 6],
@@ -200,14 +201,33 @@ impl Sender {
         }
         if a > 0.0 { p / a } else { Vec3::ZERO }
     }
+
+    /// What it sends to a receiver at `at` ([`Sender::toward`] the direction from its
+    /// centre to `at`), and the unit direction from `at` to its centre.
+    fn seen_from(&self, at: Vec3) -> (Vec3, Vec3) {
+        let w = (at - self.centre).normalize_or_zero();
+        (self.toward(w), -w)
+    }
+}
+
+/// A linear function over a triangle, given by its values at the corners, at the point
+/// whose barycentric weights are `w`.
+fn mix(corners: &[Vec3; 3], w: [f32; 3]) -> Vec3 {
+    corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2]
+}
+
+/// The linear function with values `corners` at the corners of surface node `node`, at
+/// the point of the node closest to `x`.
+fn linear_at(mesh: &Mesh, node: u32, corners: &[Vec3; 3], x: Vec3) -> Vec3 {
+    let (_, w) = closest_point_on_triangle(x, &mesh.nodes[node as usize].verts);
+    mix(corners, w)
 }
 
 /// What a surface source whose linear B has the values `corners` at its corners sends
 /// along link `l`: that B at the point the receiver sees it best (the link's kernel
 /// centroid), never negative.
 fn sent_from_corners(corners: &[Vec3; 3], l: &Link) -> Vec3 {
-    let w = l.toward();
-    (corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2]).max(Vec3::ZERO)
+    mix(corners, l.toward()).max(Vec3::ZERO)
 }
 
 /// The moments behind a surface node's linear fit (see [`Hierarchy::pull`]), in its
@@ -404,10 +424,7 @@ impl Hierarchy {
     /// negative.
     fn source_b(&self, l: &Link, at: Vec3) -> Vec3 {
         match l.source.cluster() {
-            Some(c) => {
-                let send = &self.cluster_send[c];
-                send.toward((at - send.centre).normalize_or_zero())
-            }
+            Some(c) => self.cluster_send[c].seen_from(at).0,
             None => sent_from_corners(&self.node_corners[l.source.0 as usize], l),
         }
     }
@@ -540,11 +557,7 @@ impl Hierarchy {
                         // The way to the source's centre, from a cluster source's
                         // sender record (the direction its light is read for).
                         let (b, to_source) = match l.source.cluster() {
-                            Some(s) => {
-                                let send = &self.cluster_send[s];
-                                let w = (at - send.centre).normalize_or_zero();
-                                (send.toward(w), -w)
-                            }
+                            Some(s) => self.cluster_send[s].seen_from(at),
                             None => (
                                 self.source_b(l, at),
                                 (centre(l.source) - at).normalize_or_zero(),
@@ -588,6 +601,12 @@ impl Hierarchy {
     /// H pushed down the clusters: each cluster's own plus its ancestors'.
     fn cluster_down(&self) -> Vec<Octants> {
         let mut down = self.cluster_h.clone();
+        self.push_down_clusters(&mut down);
+        down
+    }
+
+    /// Adds to each cluster's `down` what its ancestors' hold: one pass, parents first.
+    fn push_down_clusters(&self, down: &mut [Octants]) {
         for c in 0..down.len() {
             let p = self.clusters.nodes[c].parent;
             if p != NONE {
@@ -595,7 +614,6 @@ impl Hierarchy {
                 down[c].merge(&above);
             }
         }
-        down
     }
 
     /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
@@ -606,9 +624,7 @@ impl Hierarchy {
         let x = mesh.elements[element].centroid();
         let mut h = Vec3::ZERO;
         while node != NONE {
-            let corners = &self.node_h[node as usize];
-            let (_, w) = closest_point_on_triangle(x, &mesh.nodes[node as usize].verts);
-            h += corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2];
+            h += linear_at(mesh, node, &self.node_h[node as usize], x);
             node = self.parent[node as usize];
         }
         let c = self.clusters.patch_parent[mesh.elements[element].patch as usize];
@@ -771,19 +787,16 @@ impl Solver {
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
             let down = h.cluster_down();
-            let linear: Vec<Vec3> = (0..mesh.elements.len())
+            // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
+            // at once (`edits`); the linear H for incremental sweeps.
+            (h.leaf_linear, self.gathered) = (0..mesh.elements.len())
                 .into_par_iter()
                 .with_min_len(1024)
-                .map(|e| h.leaf_irradiance_linear(mesh, e, &down))
-                .collect();
-            // Kept for edits: B = E' + ρ H answers a reflectance change at once (`edits`).
-            self.gathered = linear
-                .par_iter()
-                .enumerate()
-                .with_min_len(1024)
-                .map(|(e, l)| h.capped(e, *l).as_dvec3())
-                .collect();
-            h.leaf_linear = linear;
+                .map(|e| {
+                    let linear = h.leaf_irradiance_linear(mesh, e, &down);
+                    (linear, h.capped(e, linear).as_dvec3())
+                })
+                .unzip();
         }
         let (source, reflectance) = (&self.source, &self.reflectance);
         let swept: Vec<DVec3> = self
