@@ -65,7 +65,12 @@ impl Anderson {
         {
             self.restart(); // another set of elements: the history does not apply
         }
-        let f: Vec<DVec3> = g.iter().zip(x).map(|(g, x)| *g - *x).collect();
+        let f: Vec<DVec3> = g
+            .par_iter()
+            .zip(x)
+            .with_min_len(CHUNK)
+            .map(|(g, x)| *g - *x)
+            .collect();
         let norm = dot(|e| f[e], |e| f[e], &weight, f.len()).sqrt();
         match self.last.take() {
             Some((_, _, last_norm)) if norm > GROWTH * last_norm => self.columns.clear(),

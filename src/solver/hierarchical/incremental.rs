@@ -87,13 +87,17 @@ impl BySource {
     }
 }
 
-/// What the changed sources sent before they were pulled again: their positions in
-/// `corners` (surface nodes) and `send` (clusters), `NONE` for a source that did not
-/// change.
-struct Old {
+/// What the changed sources send now and sent before they were pulled again, in arrays
+/// as short as the lists of changed sources (the gather of the changes reads them once per
+/// link, in an order that jumps about the scene): their positions in `corners` (surface
+/// nodes) and `send` (clusters), `NONE` for a source that did not change.
+struct Sent {
     at_node: Vec<u32>,
     at_cluster: Vec<u32>,
-    corners: Vec<[Vec3; 3]>,
+    /// A changed surface node's linear fit at its corners: now, then.
+    corners: Vec<[[Vec3; 3]; 2]>,
+    /// What a changed cluster sends now less what it sent: [`Sender::toward`] is linear
+    /// in the radiosities for given projected areas, which an edit does not change.
     send: Vec<Sender>,
 }
 
@@ -159,24 +163,34 @@ impl Hierarchy {
 
         // What the changed sources sent, then pull them again (children first: a child's
         // index is larger than its parent's, in the quadtrees and in the cluster tree).
-        let old = Old {
-            at_node: position_of(&nodes, mesh.nodes.len()),
-            at_cluster: position_of(&clusters, self.clusters.nodes.len()),
-            corners: nodes
-                .iter()
-                .map(|&n| self.node_corners[n as usize])
-                .collect(),
-            send: clusters
-                .iter()
-                .map(|&c| self.cluster_send[c as usize])
-                .collect(),
-        };
+        let then: Vec<[Vec3; 3]> = nodes
+            .iter()
+            .map(|&n| self.node_corners[n as usize])
+            .collect();
+        let sent_then: Vec<Sender> = clusters
+            .iter()
+            .map(|&c| self.cluster_send[c as usize])
+            .collect();
         for &n in nodes.iter().rev() {
             self.pull_node(mesh, n as usize, x);
         }
         for &c in clusters.iter().rev() {
             self.pull_cluster(mesh, c as usize);
         }
+        let sent = Sent {
+            at_node: position_of(&nodes, mesh.nodes.len()),
+            at_cluster: position_of(&clusters, self.clusters.nodes.len()),
+            corners: nodes
+                .iter()
+                .zip(then)
+                .map(|(&n, then)| [self.node_corners[n as usize], then])
+                .collect(),
+            send: clusters
+                .iter()
+                .zip(&sent_then)
+                .map(|(&c, then)| self.cluster_send[c as usize].less(then))
+                .collect(),
+        };
 
         // The links out of them, in link order (receiver, then source): marked in a
         // bitmap over the links and read back in order, then what each receiver's
@@ -200,7 +214,7 @@ impl Hierarchy {
         let receiver = |i: &u32| self.links[*i as usize].receiver;
         let changes: Vec<Change> = reached
             .par_chunk_by(|a, b| receiver(a) == receiver(b))
-            .map(|group| self.change_at(mesh, group, &old))
+            .map(|group| self.change_at(mesh, group, &sent))
             .collect();
 
         // The change of each leaf's H below the receivers that changed: the change of its
@@ -225,6 +239,7 @@ impl Hierarchy {
             }
         }
         self.push_down_clusters(&mut down);
+        let pushed: Vec<bool> = down.iter().map(|o| *o != Octants::default()).collect();
         // Below a surface receiver that changed, a leaf walks up its ancestors for their
         // changes; below a cluster that changed, it takes what the cluster pushes down.
         let surface_at = position_of(&surface, mesh.nodes.len());
@@ -238,18 +253,23 @@ impl Hierarchy {
                 below_surface[i] = true;
             }
         }
+        // Each leaf's own entries, in parallel: the leaves' linear H is taken out of
+        // `self` while the rest of it is read.
+        let mut leaf_linear = std::mem::take(&mut self.leaf_linear);
         let this = &*self;
-        let moved: Vec<(usize, Vec3)> = (0..x.len())
-            .into_par_iter()
+        leaf_linear
+            .par_iter_mut()
+            .zip(gathered.par_iter_mut())
+            .enumerate()
             .with_min_len(4096)
-            .filter_map(|e| {
+            .for_each(|(e, (linear, gathered))| {
                 let n = this.element_node[e];
                 let element = &mesh.elements[e];
                 let c = this.clusters.patch_parent[element.patch as usize];
-                let from_cluster = c != NONE && down[c as usize] != Octants::default();
+                let from_cluster = c != NONE && pushed[c as usize];
                 let from_surface = n != NONE && below_surface[n as usize];
                 if !(from_cluster || from_surface) {
-                    return None;
+                    return;
                 }
                 // As `leaf_irradiance_linear` sums it, over the changes.
                 let mut d = Vec3::ZERO;
@@ -265,13 +285,10 @@ impl Hierarchy {
                 if from_cluster {
                     d += down[c as usize].at(element.normal);
                 }
-                Some((e, this.leaf_linear[e] + d))
-            })
-            .collect();
-        for (e, linear) in moved {
-            self.leaf_linear[e] = linear;
-            gathered[e] = self.capped(e, linear).as_dvec3();
-        }
+                *linear += d;
+                *gathered = this.capped(e, *linear).as_dvec3();
+            });
+        self.leaf_linear = leaf_linear;
         Some(())
     }
 
@@ -312,8 +329,8 @@ impl Hierarchy {
     /// What one receiver's gathered H changes by over the links at indices `group` (all
     /// to it, in link order, all from sources that changed): the terms of
     /// [`Hierarchy::gather`] for these links, each source's value now less what it sent
-    /// before (`old`), each clamped as the gather clamps it.
-    fn change_at(&self, mesh: &Mesh, group: &[u32], old: &Old) -> Change {
+    /// before (`sent`), each clamped as the gather clamps it.
+    fn change_at(&self, mesh: &Mesh, group: &[u32], sent: &Sent) -> Change {
         let r = self.links[group[0] as usize].receiver;
         let group = group.iter().map(|&i| &self.links[i as usize]);
         let surface_centre = |n: u32| {
@@ -325,15 +342,11 @@ impl Hierarchy {
         let change = |l: &Link, at: Vec3| -> (Vec3, Option<Vec3>) {
             match l.source.cluster() {
                 Some(c) => {
-                    let now = &self.cluster_send[c];
-                    let then = old.send.get(old.at_cluster[c] as usize).unwrap_or(now);
-                    let (b, to_source) = now.seen_from(at);
-                    (b - then.seen_from(at).0, Some(to_source))
+                    let (d, to_source) = sent.send[sent.at_cluster[c] as usize].seen_from(at);
+                    (d, Some(to_source))
                 }
                 None => {
-                    let n = l.source.0 as usize;
-                    let now = &self.node_corners[n];
-                    let then = old.corners.get(old.at_node[n] as usize).unwrap_or(now);
+                    let [now, then] = &sent.corners[sent.at_node[l.source.0 as usize] as usize];
                     (sent_from_corners(now, l) - sent_from_corners(then, l), None)
                 }
             }

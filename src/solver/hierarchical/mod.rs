@@ -67,6 +67,9 @@ const NONE: u32 = u32::MAX;
 /// sweeps that only round differently stays below about 10⁻⁷.
 const SWEEP_FLOOR: f64 = 1e-6;
 
+/// Elements per piece of a parallel pass over the elements.
+const CHUNK: usize = 4096;
+
 impl NodeId {
     pub fn surface(node: u32) -> NodeId {
         NodeId(node)
@@ -200,6 +203,16 @@ impl Sender {
             a += self.area[f] as f32;
         }
         if a > 0.0 { p / a } else { Vec3::ZERO }
+    }
+
+    /// The record whose radiosities are this one's less `then`'s (same centre and
+    /// projected areas).
+    fn less(&self, then: &Sender) -> Sender {
+        debug_assert_eq!((self.area, self.centre), (then.area, then.centre));
+        Sender {
+            b: std::array::from_fn(|f| self.b[f] - then.b[f]),
+            ..*self
+        }
     }
 
     /// What it sends to a receiver at `at` ([`Sender::toward`] the direction from its
@@ -801,16 +814,29 @@ impl Solver {
         let (source, reflectance) = (&self.source, &self.reflectance);
         let swept: Vec<DVec3> = self
             .gathered
-            .iter()
+            .par_iter()
             .enumerate()
+            .with_min_len(CHUNK)
             .map(|(e, hh)| source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3())
             .collect();
-        let (mut changed, mut total) = (0.0f64, 0.0f64);
-        for (e, (b, old)) in swept.iter().zip(&self.radiosity).enumerate() {
-            let a = mesh.elements[e].area as f64;
-            changed += sum3d((*b - *old).abs()) * a;
-            total += sum3d(b.abs()) * a;
-        }
+        // Summed by fixed chunks, then the chunks in order: the same sums on any number of
+        // threads.
+        let (changed, total) = swept
+            .par_chunks(CHUNK)
+            .zip(self.radiosity.par_chunks(CHUNK))
+            .enumerate()
+            .map(|(c, (b, old))| {
+                let (mut changed, mut total) = (0.0f64, 0.0f64);
+                for (i, (b, old)) in b.iter().zip(old).enumerate() {
+                    let a = mesh.elements[c * CHUNK + i].area as f64;
+                    changed += sum3d((*b - *old).abs()) * a;
+                    total += sum3d(b.abs()) * a;
+                }
+                (changed, total)
+            })
+            .collect::<Vec<_>>()
+            .iter()
+            .fold((0.0, 0.0), |(c, t), (dc, dt)| (c + dc, t + dt));
         let next = if accelerate {
             let area = |e: usize| mesh.elements[e].area;
             h.acceleration.next(&self.radiosity, swept, area)
@@ -835,13 +861,15 @@ impl Solver {
         if edited.is_empty() || basis.len() != self.radiosity.len() {
             return;
         }
-        let mut x = basis.clone();
-        for p in edited {
-            for e in self.mesh.patches[p as usize].elements.clone() {
-                x[e as usize] = self.radiosity[e as usize];
-            }
+        let kept: Vec<(usize, DVec3)> = edited
+            .iter()
+            .flat_map(|&p| self.mesh.patches[p as usize].elements.clone())
+            .map(|e| (e as usize, self.radiosity[e as usize]))
+            .collect();
+        self.radiosity.copy_from_slice(basis);
+        for (e, b) in kept {
+            self.radiosity[e] = b;
         }
-        self.radiosity = x;
     }
 
     /// The change per sweep the sweeps stop at: the tolerance scaled by 1 − ρ̄ (Jacobi's
