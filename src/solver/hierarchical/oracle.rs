@@ -107,7 +107,38 @@ struct View<'a> {
     ambient: f32,
 }
 
+/// Where a node is and how large, which is all the oracle's decisions read of its
+/// geometry ([`View::shape`] also copies a cluster's sample patches, for transfers).
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    centre: Vec3,
+    radius: f32,
+    area: f32,
+}
+
 impl View<'_> {
+    fn bounds(&self, id: NodeId) -> Bounds {
+        match id.cluster() {
+            Some(c) => {
+                let c = &self.h.clusters.nodes[c];
+                Bounds {
+                    centre: c.centre,
+                    radius: c.radius,
+                    area: c.area,
+                }
+            }
+            None => {
+                let n = id.0 as usize;
+                let verts = &self.mesh.nodes[n].verts;
+                Bounds {
+                    centre: transfer::centroid(verts),
+                    radius: transfer::radius(verts),
+                    area: self.h.node_area[n],
+                }
+            }
+        }
+    }
+
     fn shape(&self, id: NodeId) -> Shape {
         match id.cluster() {
             Some(c) => {
@@ -236,14 +267,14 @@ impl View<'_> {
     }
 
     /// The link's error estimate and the threshold it is held to; `r` and `s` are the
-    /// shapes of its receiver and source.
-    fn estimate(&self, l: &Link, r: &Shape, s: &Shape) -> Estimate {
+    /// bounds of its receiver and source.
+    fn estimate(&self, l: &Link, r: &Bounds, s: &Bounds) -> Estimate {
         let rho = self.reflectance(l.receiver);
         // Averaging B over the source errs by ΔB_s times how much the kernel varies across
         // the source, about its radius over the distance (at most 1).
-        let d = (r.centre() - s.centre()).length();
+        let d = (r.centre - s.centre).length();
         let across = if d > 0.0 {
-            (s.radius() / d).min(1.0)
+            (s.radius / d).min(1.0)
         } else {
             1.0
         };
@@ -287,7 +318,7 @@ impl View<'_> {
     }
 
     fn decide(&self, l: &Link) -> Decision {
-        let (r, s) = (self.shape(l.receiver), self.shape(l.source));
+        let (r, s) = (self.bounds(l.receiver), self.bounds(l.source));
         let Estimate {
             kernel,
             variation,
@@ -307,7 +338,7 @@ impl View<'_> {
         // shadow boundary, when it is more than four times the receiver's area and the
         // receiver cannot split (finer visibility). With a cluster the larger end splits.
         let order: &[(NodeId, Decision)] = if !surfaces {
-            if r.radius() >= s.radius() {
+            if r.radius >= s.radius {
                 &[
                     (l.receiver, Decision::Receiver),
                     (l.source, Decision::Source),
@@ -320,7 +351,7 @@ impl View<'_> {
             }
         } else if variation > kernel {
             &[(l.source, Decision::Source)]
-        } else if l.partial() && area(&s) > 4.0 * area(&r) {
+        } else if l.partial() && s.area > 4.0 * r.area {
             &[
                 (l.receiver, Decision::Receiver),
                 (l.source, Decision::Source),
@@ -388,12 +419,6 @@ impl View<'_> {
             t.spread = 1.0;
         }
         Some((Link::new(r, s, &t), t.rays))
-    }
-}
-
-fn area(s: &Shape) -> f32 {
-    match s {
-        Shape::Surface { area, .. } | Shape::Cluster { area, .. } => *area,
     }
 }
 
@@ -472,7 +497,7 @@ impl Solver {
             threshold: h.threshold,
             ambient: 0.0,
         };
-        let (r, s) = (view.shape(l.receiver), view.shape(l.source));
+        let (r, s) = (view.bounds(l.receiver), view.bounds(l.source));
         view.estimate(l, &r, &s)
     }
 
@@ -493,7 +518,11 @@ impl Solver {
     /// edit that darkens the scene lowers every link's error and must not refine (it would
     /// when the mean radiosity falls faster than the errors do).
     fn held_threshold(&self, h: &mut Hierarchy) -> f32 {
-        h.threshold = h.threshold.max(self.link_threshold());
+        // Past the link budget it stays infinite, and the means over every element that
+        // the threshold takes would cost each edit a pass over the scene for nothing.
+        if h.threshold != f32::INFINITY {
+            h.threshold = h.threshold.max(self.link_threshold());
+        }
         h.threshold
     }
 

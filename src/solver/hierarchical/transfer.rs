@@ -325,12 +325,12 @@ fn surface_to_surface(
 const NEAR_SOURCE: f32 = 0.05;
 
 /// A triangle's centroid.
-fn centroid(v: &[Vec3; 3]) -> Vec3 {
+pub(super) fn centroid(v: &[Vec3; 3]) -> Vec3 {
     (v[0] + v[1] + v[2]) / 3.0
 }
 
 /// The radius of the sphere around a triangle's centroid that holds it.
-fn radius(v: &[Vec3; 3]) -> f32 {
+pub(super) fn radius(v: &[Vec3; 3]) -> f32 {
     let c = centroid(v);
     v.iter().map(|p| (*p - c).length()).fold(0.0, f32::max)
 }
