@@ -193,3 +193,51 @@ fn contact_lines_stop_the_leak_on_the_coarse_mesh_right_up_to_the_edge() {
         assert!(in_c < 0.01, "{mode:?}: light under the block: {in_c} of ρE");
     }
 }
+
+/// The display shares a vertex on a contact line among all the floor's elements on one
+/// side of the line, whichever of the floor's two triangles they come from. The block's
+/// footprint has two corners on the floor quad's diagonal: there the outside pieces of
+/// both triangles meet. Numbered per triangle, the sides split such a vertex in two, each
+/// triangle took its own value there, and on a wall with light varying along it the
+/// split showed as wedges along the triangles' edges (Sponza's walls). The truth here is
+/// geometric: one vertex per side at each corner of the footprint.
+#[test]
+fn each_side_of_a_contact_line_shares_its_vertices_across_the_floors_triangles() {
+    let p = Prepared::new(
+        &scene(),
+        &MeshSettings {
+            element_size: Some(0.25),
+            shadow_lines: false,
+            ..Default::default()
+        },
+    );
+    let mesh = &p.mesh;
+    let h = HALF as f32;
+    // The mesh's frame is centred on the scene's bounds: the floor is its lowest face.
+    let up = || mesh.elements.iter().filter(|e| e.normal.y > 0.9);
+    let y = up().map(|e| e.verts[0].y).fold(f32::INFINITY, f32::min);
+    for (x, z) in [(-h, -h), (-h, h), (h, -h), (h, h)] {
+        let corner = Vec3::new(x, y, z);
+        let (mut outside, mut inside) = (Vec::new(), Vec::new());
+        for e in up() {
+            let c = e.centroid();
+            for k in 0..3 {
+                if (e.verts[k] - corner).length() < 1e-5 {
+                    let side = if c.x.abs() > h || c.z.abs() > h {
+                        &mut outside
+                    } else {
+                        &mut inside
+                    };
+                    side.push(e.corners[k]);
+                }
+            }
+        }
+        for side in [&mut outside, &mut inside] {
+            side.sort_unstable();
+            side.dedup();
+        }
+        assert_eq!(outside.len(), 1, "outside at {corner}: {outside:?}");
+        assert_eq!(inside.len(), 1, "inside at {corner}: {inside:?}");
+        assert_ne!(outside, inside, "the sides share a vertex at {corner}");
+    }
+}

@@ -209,7 +209,13 @@ impl App {
                 );
             }
             if let Some(t) = s.first_solution_seconds {
-                row("first solution", format!("{t:.2} s"));
+                // A small scene's first preview comes within milliseconds.
+                let shown = if t < 0.1 {
+                    format!("{:.1} ms", t * 1e3)
+                } else {
+                    format!("{t:.2} s")
+                };
+                row("first solution", shown);
             }
             if let Some(m) = self.texture_memory()
                 && m.images > 0
