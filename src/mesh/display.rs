@@ -77,14 +77,7 @@ impl DisplayMesh {
     /// Welds the corners of `elements` into shared vertices and records them in
     /// `Element::corners`. Positions closer than `scale × 1e-6` are the same point; points
     /// on a contact line (`cut_edges`, the ranges in `Patch::cuts`) are shared only by
-    /// patches on the same side of the lines, so the light may jump across a line.
-    ///
-    /// A side is a region (`Patch::region`, numbered per input triangle) merged with the
-    /// regions of the other triangles it meets at a vertex on no line: the pieces around
-    /// such a vertex all meet without crossing a line. Kept per triangle, the regions split
-    /// the vertices where a line crosses the edge between two triangles of one wall, and
-    /// each side of that edge took its own value there: fans of wedges along the long thin
-    /// triangles of Sponza's walls.
+    /// patches of the same region, so the light may jump across the line.
     pub fn build(
         elements: &mut [Element],
         patches: &[Patch],
@@ -115,60 +108,27 @@ impl DisplayMesh {
             )
         };
         let mut welded: HashMap<([i64; 3], u32, bool, u32), Vec<u32>> = HashMap::new();
-        let mut weld = |mesh: &mut DisplayMesh, key, p: Vec3, normal: Vec3| -> (u32, bool) {
-            let slots: &mut Vec<u32> = welded.entry(key).or_default();
-            let found = slots
-                .iter()
-                .copied()
-                .find(|&v| mesh.normals[v as usize].dot(normal) >= cos_smooth);
-            match found {
-                Some(v) => (v, true),
-                None => {
-                    let v = mesh.positions.len() as u32;
-                    mesh.positions.push(p);
-                    mesh.normals.push(normal);
-                    slots.push(v);
-                    (v, false)
-                }
-            }
-        };
-        // Corners on no line first, merging the regions that meet at them; then the
-        // corners on a line, by merged region.
-        let regions = patches.iter().map(|p| p.region + 1).max().unwrap_or(0);
-        let mut sides = Sides::new(regions as usize);
-        let mut vertex_region: Vec<u32> = Vec::new();
-        let mut on_line = Vec::new();
-        for (i, e) in elements.iter_mut().enumerate() {
+        for e in elements.iter_mut() {
             let patch = &patches[e.patch as usize];
             for k in 0..3 {
-                let key = key(e.verts[k], patch);
-                if key.3 != u32::MAX {
-                    on_line.push((i, k));
-                    continue;
-                }
-                let (v, found) = weld(&mut mesh, key, e.verts[k], e.normal);
-                if found {
-                    sides.merge(vertex_region[v as usize], patch.region);
-                } else {
-                    vertex_region.push(patch.region);
-                }
-                e.corners[k] = v;
+                let p = e.verts[k];
+                let key = key(p, patch);
+                let slots = welded.entry(key).or_default();
+                let found = slots
+                    .iter()
+                    .copied()
+                    .find(|&v| mesh.normals[v as usize].dot(e.normal) >= cos_smooth);
+                e.corners[k] = match found {
+                    Some(v) => v,
+                    None => {
+                        let v = mesh.positions.len() as u32;
+                        mesh.positions.push(p);
+                        mesh.normals.push(e.normal);
+                        slots.push(v);
+                        v
+                    }
+                };
             }
-        }
-        let sides = sides.resolve();
-        let key = |p: Vec3, patch: &Patch| {
-            let (q, material, back, region) = key(p, patch);
-            let side = if region == u32::MAX {
-                u32::MAX
-            } else {
-                sides[region as usize]
-            };
-            (q, material, back, side)
-        };
-        for (i, k) in on_line {
-            let e = &mut elements[i];
-            let key = key(e.verts[k], &patches[e.patch as usize]);
-            e.corners[k] = weld(&mut mesh, key, e.verts[k], e.normal).0;
         }
         // T-vertices: a vertex of the same smooth surface at the midpoint of an element's
         // edge is not one of its corners, so it hangs on that edge.
@@ -226,38 +186,6 @@ impl DisplayMesh {
                     + vertex_values[c[2] as usize] * bary[2]
             }
         }
-    }
-}
-
-/// Union–find over regions (`Patch::region`): which side of the contact lines each is on.
-struct Sides(Vec<u32>);
-
-impl Sides {
-    fn new(regions: usize) -> Sides {
-        Sides((0..regions as u32).collect())
-    }
-    fn find(&mut self, mut r: u32) -> u32 {
-        while self.0[r as usize] != r {
-            let up = self.0[self.0[r as usize] as usize];
-            self.0[r as usize] = up;
-            r = up;
-        }
-        r
-    }
-    /// Each region's side: the smallest region it was merged with (a root is never
-    /// above its members, so one pass in order resolves them all).
-    fn resolve(mut self) -> Vec<u32> {
-        for r in 0..self.0.len() {
-            self.0[r] = self.0[self.0[r] as usize];
-        }
-        self.0
-    }
-    /// Puts `a` and `b` on one side; the smaller root stays, so the result does not
-    /// depend on the order of merges.
-    fn merge(&mut self, a: u32, b: u32) {
-        let (a, b) = (self.find(a), self.find(b));
-        let (low, high) = (a.min(b), a.max(b));
-        self.0[high as usize] = low;
     }
 }
 
