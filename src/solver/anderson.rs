@@ -20,6 +20,7 @@
 //! Values below zero (a step may overshoot where B is near 0) are cut off: B is a
 //! radiosity.
 
+use super::{ELEMENT_CHUNK, ordered_sum};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -29,10 +30,6 @@ const WINDOW: usize = 5;
 
 /// The residual may grow by this factor before the window restarts.
 const GROWTH: f64 = 1.0;
-
-/// Elements per chunk of the parallel inner products; chunk sums are added in order, so
-/// results do not depend on the thread count.
-const CHUNK: usize = 4096;
 
 /// The iteration's history: see the module documentation.
 #[derive(Default)]
@@ -68,7 +65,7 @@ impl Anderson {
         let f: Vec<DVec3> = g
             .par_iter()
             .zip(x)
-            .with_min_len(CHUNK)
+            .with_min_len(ELEMENT_CHUNK)
             .map(|(g, x)| *g - *x)
             .collect();
         let norm = dot(|e| f[e], |e| f[e], &weight, f.len()).sqrt();
@@ -90,7 +87,7 @@ impl Anderson {
         if let Some(gamma) = gamma {
             next.par_iter_mut()
                 .enumerate()
-                .with_min_len(CHUNK)
+                .with_min_len(ELEMENT_CHUNK)
                 .for_each(|(e, v)| {
                     for (c, (_, dg)) in gamma.iter().zip(&self.columns) {
                         *v -= dg[e].as_dvec3() * *c;
@@ -160,24 +157,15 @@ fn cholesky_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
     Some(b)
 }
 
-/// Area-weighted inner product Σ_e w(e) u(e) · v(e) over `n` elements, summed per chunk
-/// in a fixed order.
+/// Area-weighted inner product Σ_e w(e) u(e) · v(e) over `n` elements, summed in a
+/// fixed order ([`ordered_sum`]).
 fn dot(
     u: impl Fn(usize) -> DVec3 + Sync,
     v: impl Fn(usize) -> DVec3 + Sync,
     w: &(impl Fn(usize) -> f32 + Sync),
     n: usize,
 ) -> f64 {
-    (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            (c * CHUNK..((c + 1) * CHUNK).min(n))
-                .map(|e| u(e).dot(v(e)) * w(e) as f64)
-                .sum::<f64>()
-        })
-        .collect::<Vec<f64>>()
-        .iter()
-        .sum()
+    ordered_sum(n, |e| u(e).dot(v(e)) * w(e) as f64)
 }
 
 #[cfg(test)]

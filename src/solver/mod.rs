@@ -126,6 +126,28 @@ fn sum3d(v: DVec3) -> f64 {
     v.x + v.y + v.z
 }
 
+/// Elements per piece of a parallel pass over the elements, and per chunk of
+/// [`ordered_sum`].
+const ELEMENT_CHUNK: usize = 4096;
+
+/// Σ f(e) over e in 0..n: each chunk of [`ELEMENT_CHUNK`] elements summed in order, in
+/// parallel, then the chunk sums in order, so the result does not depend on the thread
+/// count.
+fn ordered_sum<T>(n: usize, f: impl Fn(usize) -> T + Sync) -> T
+where
+    T: Copy + Default + Send + std::ops::Add<Output = T>,
+{
+    (0..n.div_ceil(ELEMENT_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            (c * ELEMENT_CHUNK..((c + 1) * ELEMENT_CHUNK).min(n))
+                .fold(T::default(), |s, e| s + f(e))
+        })
+        .collect::<Vec<T>>()
+        .into_iter()
+        .fold(T::default(), |s, x| s + x)
+}
+
 impl Solver {
     /// A solver for `mesh` with visibility from `bvh` and the scene's external `lights`.
     pub fn new(

@@ -29,6 +29,7 @@
 use super::link::Link;
 use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_from_corners};
 use crate::mesh::Mesh;
+use crate::solver::ELEMENT_CHUNK;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -139,7 +140,7 @@ impl Hierarchy {
         }
         let changed: Vec<usize> = (0..x.len())
             .into_par_iter()
-            .with_min_len(4096)
+            .with_min_len(ELEMENT_CHUNK)
             .filter(|&e| x[e] != basis[e])
             .collect();
         if changed.len() > x.len() / 4 {
@@ -261,7 +262,7 @@ impl Hierarchy {
             .par_iter_mut()
             .zip(gathered.par_iter_mut())
             .enumerate()
-            .with_min_len(4096)
+            .with_min_len(ELEMENT_CHUNK)
             .for_each(|(e, (linear, gathered))| {
                 let n = this.element_node[e];
                 let element = &mesh.elements[e];
@@ -333,10 +334,6 @@ impl Hierarchy {
     fn change_at(&self, mesh: &Mesh, group: &[u32], sent: &Sent) -> Change {
         let r = self.links[group[0] as usize].receiver;
         let group = group.iter().map(|&i| &self.links[i as usize]);
-        let surface_centre = |n: u32| {
-            let v = &mesh.nodes[n as usize].verts;
-            (v[0] + v[1] + v[2]) / 3.0
-        };
         // A source's change towards `at`, and for a cluster source the unit direction
         // from `at` to it.
         let change = |l: &Link, at: Vec3| -> (Vec3, Option<Vec3>) {
@@ -363,7 +360,7 @@ impl Hierarchy {
                         o.add_around(e * cluster.area / cluster.abs_area.element_sum());
                     } else {
                         let to_source = to_source.unwrap_or_else(|| {
-                            (surface_centre(l.source.0) - at).normalize_or_zero()
+                            (self.centre(mesh, l.source) - at).normalize_or_zero()
                         });
                         o.add(e, to_source);
                     }
@@ -371,7 +368,7 @@ impl Hierarchy {
                 Change::Cluster(c, o)
             }
             None => {
-                let at = surface_centre(r.0);
+                let at = self.centre(mesh, r);
                 let mut h = [Vec3::ZERO; 3];
                 for l in group {
                     let d = change(l, at).0;

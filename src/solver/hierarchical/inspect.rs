@@ -51,16 +51,6 @@ impl Hierarchy {
         let end = self.links.partition_point(|l| l.receiver <= id);
         &self.links[start..end]
     }
-
-    fn centre(&self, mesh: &crate::mesh::Mesh, id: NodeId) -> Vec3 {
-        match id.cluster() {
-            Some(c) => self.clusters.nodes[c].centre,
-            None => {
-                let v = &mesh.nodes[id.0 as usize].verts;
-                (v[0] + v[1] + v[2]) / 3.0
-            }
-        }
-    }
 }
 
 impl Solver {

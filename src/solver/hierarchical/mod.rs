@@ -43,11 +43,11 @@ pub(super) mod transfer;
 
 use super::anderson::Anderson;
 use super::types::Stop;
-use super::{Solver, sum3d};
+use super::{ELEMENT_CHUNK, Solver, ordered_sum, sum3d};
 use crate::geometry::closest_point_on_triangle;
 use crate::mesh::Mesh;
 use clusters::Clusters;
-use glam::{DVec3, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 pub use inspect::{ElementLinks, LinkView};
 use link::Link;
 use rayon::prelude::*;
@@ -66,9 +66,6 @@ const NONE: u32 = u32::MAX;
 /// each element's B by up to 2⁻²⁴ relative, and the area-weighted change between two
 /// sweeps that only round differently stays below about 10⁻⁷.
 const SWEEP_FLOOR: f64 = 1e-6;
-
-/// Elements per piece of a parallel pass over the elements.
-const CHUNK: usize = 4096;
 
 impl NodeId {
     pub fn surface(node: u32) -> NodeId {
@@ -422,6 +419,14 @@ impl Hierarchy {
         }
     }
 
+    /// Where a node is: a surface node's centroid or a cluster's centre.
+    fn centre(&self, mesh: &Mesh, id: NodeId) -> Vec3 {
+        match id.cluster() {
+            Some(c) => self.clusters.nodes[c].centre,
+            None => transfer::centroid(&mesh.nodes[id.0 as usize].verts),
+        }
+    }
+
     fn b(&self, id: NodeId) -> Vec3 {
         match id.cluster() {
             Some(c) => self.cluster_b[c],
@@ -459,10 +464,7 @@ impl Hierarchy {
 
     /// [`Hierarchy::pull`] at surface node `i`, whose children are pulled already.
     fn pull_node(&mut self, mesh: &Mesh, i: usize, radiosity: &[DVec3]) {
-        let centre = |i: usize| {
-            let v = &mesh.nodes[i].verts;
-            (v[0] + v[1] + v[2]) / 3.0
-        };
+        let centre = |i: usize| transfer::centroid(&mesh.nodes[i].verts);
         let node = &mesh.nodes[i];
         self.node_b[i] = match (node.element, node.children) {
             (Some(e), _) => {
@@ -549,13 +551,7 @@ impl Hierarchy {
     /// Gathers H at every receiver over its links (at a surface node's corners; by
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
-        let centre = |id: NodeId| match id.cluster() {
-            Some(c) => self.clusters.nodes[c].centre,
-            None => {
-                let v = &mesh.nodes[id.0 as usize].verts;
-                (v[0] + v[1] + v[2]) / 3.0
-            }
-        };
+        let centre = |id: NodeId| self.centre(mesh, id);
         let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
             .links
             .par_chunk_by(|a, b| a.receiver == b.receiver)
@@ -816,27 +812,16 @@ impl Solver {
             .gathered
             .par_iter()
             .enumerate()
-            .with_min_len(CHUNK)
+            .with_min_len(ELEMENT_CHUNK)
             .map(|(e, hh)| source[e].as_dvec3() + (reflectance[e] * hh.as_vec3()).as_dvec3())
             .collect();
-        // Summed by fixed chunks, then the chunks in order: the same sums on any number of
-        // threads.
-        let (changed, total) = swept
-            .par_chunks(CHUNK)
-            .zip(self.radiosity.par_chunks(CHUNK))
-            .enumerate()
-            .map(|(c, (b, old))| {
-                let (mut changed, mut total) = (0.0f64, 0.0f64);
-                for (i, (b, old)) in b.iter().zip(old).enumerate() {
-                    let a = mesh.elements[c * CHUNK + i].area as f64;
-                    changed += sum3d((*b - *old).abs()) * a;
-                    total += sum3d(b.abs()) * a;
-                }
-                (changed, total)
-            })
-            .collect::<Vec<_>>()
-            .iter()
-            .fold((0.0, 0.0), |(c, t), (dc, dt)| (c + dc, t + dt));
+        // The area-weighted change and total, as x and y.
+        let old = &self.radiosity;
+        let sums = ordered_sum(swept.len(), |e| {
+            let (b, a) = (swept[e], mesh.elements[e].area as f64);
+            DVec2::new(sum3d((b - old[e]).abs()), sum3d(b.abs())) * a
+        });
+        let (changed, total) = (sums.x, sums.y);
         let next = if accelerate {
             let area = |e: usize| mesh.elements[e].area;
             h.acceleration.next(&self.radiosity, swept, area)
