@@ -8,9 +8,18 @@
 
 use crate::geometry::{dtriangle_cross, triangle_cross};
 use glam::{DVec2, DVec3, Vec3};
+use spade::handles::FixedVertexHandle;
 use spade::{
     AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation,
 };
+
+/// A point on a constrained path: a vertex already in the triangulation, or a position to
+/// insert.
+#[derive(Clone, Copy)]
+enum Stop {
+    Vertex(FixedVertexHandle),
+    At(f64, f64),
+}
 
 /// One piece of a split triangle: its vertices (same orientation as the triangle) and its
 /// region, numbered from 0 per triangle (pieces of the same region meet without crossing
@@ -70,7 +79,9 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
         let snap = 1e-6 * size;
         let twice_area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
-        let mut ends: Vec<(DVec2, _)> = Vec::new();
+        // Each end placed: its position, vertex and whether it lies on each of the
+        // triangle's edges (edge k runs from corner k to corner k + 1).
+        let mut ends: Vec<(DVec2, FixedVertexHandle, [bool; 3])> = Vec::new();
         let mut place = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>, p: Vec3| {
             let q = to2(p.as_dvec3());
             let q = DVec2::new(q.x, q.y);
@@ -85,11 +96,12 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
             let b = b.map(|x| if x < tol { 0.0 } else { x });
             let sum: f64 = b.iter().sum();
             let q = (c[0] * b[0] + c[1] * b[1] + c[2] * b[2]) / sum.max(1e-300);
-            if let Some(&(_, h)) = ends.iter().find(|(e, _)| (*e - q).length() <= snap) {
+            if let Some(&(_, h, _)) = ends.iter().find(|(e, _, _)| (*e - q).length() <= snap) {
                 return Some(h);
             }
             let h = cdt.insert(Point2::new(q.x, q.y)).ok()?;
-            ends.push((q, h));
+            // Edge k lies opposite corner k + 2.
+            ends.push((q, h, [0, 1, 2].map(|k| b[(k + 2) % 3] == 0.0)));
             Some(h)
         };
         let mut segments: Vec<_> = Vec::new();
@@ -100,53 +112,71 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         }
         segments.sort_unstable_by_key(|&(a, b)| if a < b { (a, b) } else { (b, a) });
         segments.dedup_by_key(|&mut (a, b)| if a < b { (a, b) } else { (b, a) });
-        // Constraints are put in in pieces no longer than `max_len` (the patch length),
-        // so the refinement below never needs to split them. The triangle's own edges are
-        // cut at the same dyadic points the longest-edge bisection of a neighbouring,
-        // unsplit triangle puts on the shared edge (halving until at most `max_len`), so
-        // the neighbours' vertices match (no T-junctions beyond the contact lines' own
-        // ends).
-        let chain = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>,
-                     a: Point2<f64>,
-                     b: Point2<f64>,
-                     parts: u32|
+        // Constrains the path through `points` (vertices already in, or positions to
+        // insert), one edge between each two in a row.
+        let path = |cdt: &mut ConstrainedDelaunayTriangulation<Point2<f64>>,
+                    points: &[Stop]|
          -> Option<()> {
-            let mut prev = cdt.insert(a).ok()?;
-            for i in 1..=parts {
-                let t = i as f64 / parts as f64;
-                let p = Point2::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
-                let next = if i == parts {
-                    cdt.insert(b).ok()?
-                } else {
-                    cdt.insert(p).ok()?
+            let mut prev: Option<FixedVertexHandle> = None;
+            for p in points {
+                let next = match *p {
+                    Stop::Vertex(h) => h,
+                    Stop::At(x, y) => cdt.insert(Point2::new(x, y)).ok()?,
                 };
-                if next != prev {
+                if let Some(prev) = prev
+                    && prev != next
+                {
                     cdt.add_constraint_and_split(prev, next, |p| p);
                 }
-                prev = next;
+                prev = Some(next);
             }
             Some(())
         };
+        // Constraints are put in in pieces no longer than `max_len` (the patch length),
+        // so the refinement below never needs to split them.
         for (ha, hb) in segments {
             if ha != hb {
                 let (a, b) = (cdt.vertex(ha).position(), cdt.vertex(hb).position());
                 let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
                 let parts = (len / max_len).ceil().clamp(1.0, 1024.0) as u32;
-                chain(&mut cdt, a, b, parts)?;
+                let mut stops = vec![Stop::Vertex(ha)];
+                for i in 1..parts {
+                    let t = i as f64 / parts as f64;
+                    stops.push(Stop::At(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t));
+                }
+                stops.push(Stop::Vertex(hb));
+                path(&mut cdt, &stops)?;
             }
         }
+        // The triangle's own edges are cut at the same dyadic points the longest-edge
+        // bisection of a neighbouring, unsplit triangle puts on the shared edge (halving
+        // until at most `max_len`), so the neighbours' vertices match (no T-junctions
+        // beyond the contact lines' own ends); and at the ends of segments that were
+        // snapped onto them, so that the edge runs through those ends. A segment ending
+        // a rounding error beside the edge would otherwise leave a sliver of a piece
+        // around its end, through which the regions on either side of the segment join.
         for k in 0..3 {
             let (a, b) = (c[k], c[(k + 1) % 3]);
             let mut parts = 1u32;
             while (b - a).length() / parts as f64 > max_len && parts < 1 << 12 {
                 parts *= 2;
             }
-            chain(
-                &mut cdt,
-                Point2::new(a.x, a.y),
-                Point2::new(b.x, b.y),
-                parts,
-            )?;
+            let along = |p: DVec2| (p - a).dot(b - a) / (b - a).length_squared().max(1e-300);
+            let mut stops: Vec<(f64, Stop)> = (0..=parts)
+                .map(|i| {
+                    let t = i as f64 / parts as f64;
+                    let p = if i == parts { b } else { a + (b - a) * t };
+                    (t, Stop::At(p.x, p.y))
+                })
+                .collect();
+            stops.extend(
+                ends.iter()
+                    .filter(|e| e.2[k])
+                    .map(|&(q, h, _)| (along(q), Stop::Vertex(h))),
+            );
+            stops.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let stops: Vec<Stop> = stops.into_iter().map(|s| s.1).collect();
+            path(&mut cdt, &stops)?;
         }
         // Then interior points until no angle is below 25° and no piece is much larger
         // than a patch (Ruppert's refinement, constraints kept whole): contact lines that
@@ -161,24 +191,13 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
                     .with_max_additional_vertices(4096),
             );
         }
-        // Constraint edges: the contact lines and the triangle's edges. Only the former
-        // separate regions.
-        let on_boundary = |p: Point2<f64>| {
-            let q = DVec2::new(p.x, p.y);
-            (0..3).any(|k| {
-                let (a, b) = (c[k], c[(k + 1) % 3]);
-                let len = (b - a).length().max(1e-300);
-                ((b - a).perp_dot(q - a) / len).abs() <= 1e-9 * len
-            })
-        };
+        // Constraint edges (the contact lines and the triangle's edges) bound regions. The
+        // triangle's edges must too: where rounding leaves the points on an edge a hair
+        // off one line, the triangulation's hull grows a zero-area face beyond the edge,
+        // and a flood across it would join the regions on either side of a segment that
+        // ends on the edge.
         let is_cut = |e: spade::handles::DirectedEdgeHandle<_, _, _, _>| {
-            if !cdt.is_constraint_edge(e.as_undirected().fix()) {
-                return false;
-            }
-            let [a, b] = e.positions();
-            !(on_boundary(a)
-                && on_boundary(b)
-                && on_boundary(Point2::new((a.x + b.x) * 0.5, (a.y + b.y) * 0.5)))
+            cdt.is_constraint_edge(e.as_undirected().fix())
         };
         // Faces, their regions by flood fill across non-constraint edges.
         let faces: Vec<_> = cdt.inner_faces().collect();
@@ -296,6 +315,78 @@ mod tests {
             let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
             let is_inside = c.x > 0.2 && c.x < 0.6 && c.z < -0.2 && c.z > -0.6;
             assert_eq!(p.region == inside_region, is_inside);
+        }
+    }
+
+    /// The built-in Cornell box's lamp, 0.1 mm under the ceiling, outlines its footprint
+    /// on the ceiling's triangle; the triangle's diagonal crosses the footprint, so two of
+    /// the outline's segments end on the diagonal, where f32 rounding leaves them a hair
+    /// off the line. The pieces under the lamp must still form a region of their own
+    /// (before the fix they shared one region with the rest of the ceiling through a
+    /// zero-area face of the triangulation's hull, and Gouraud shading averaged the dark
+    /// footprint into the lit ceiling around it). The footprint's area is the polygon's,
+    /// by the shoelace formula; 1e-9 m² allows for f32 vertices.
+    #[test]
+    fn segments_ending_a_hair_off_an_edge_still_separate_regions() {
+        let y = 0.2744;
+        let t = [
+            Vec3::new(0.278, y, -0.2796),
+            Vec3::new(0.278, y, 0.2796),
+            Vec3::new(-0.278, y, 0.2796),
+        ];
+        let (x0, x1, z0, z1) = (-0.052100137, 0.065, -0.052599996, 0.052399993);
+        let on_diagonal = 0.052298997;
+        let cuts = [
+            [Vec3::new(x1, y, z0), Vec3::new(x1, y, z1)],
+            [Vec3::new(x1, y, z1), Vec3::new(x0, y, z1)],
+            [Vec3::new(on_diagonal, y, z0), Vec3::new(x1, y, z0)],
+        ];
+        // The footprint's part in this triangle: (x1, z0), (x1, z1), (x0, z1) and the
+        // diagonal between (x0, z1) and (on_diagonal, z0).
+        let polygon = [(x1, z0), (x1, z1), (x0, z1), (on_diagonal, z0)];
+        let footprint: f64 = (0..4)
+            .map(|k| {
+                let (a, b) = (polygon[k], polygon[(k + 1) % 4]);
+                (a.0 as f64 * b.1 as f64 - b.0 as f64 * a.1 as f64) / 2.0
+            })
+            .sum::<f64>()
+            .abs();
+        let inside = |p: &Piece| {
+            let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+            c.x < x1 && c.z > z0 && c.z < z1 && c.z > -c.x * 1.0058
+        };
+        for max_len in [0.0, 0.05, 0.2] {
+            let pieces = split(t, &cuts, max_len).expect("split");
+            let region = pieces
+                .iter()
+                .find(|p| inside(p) && triangle_area(&p.verts) > 1e-6)
+                .expect("a piece under the lamp")
+                .region;
+            let (mut under, mut outside) = (0.0f64, 0.0f64);
+            for p in &pieces {
+                let a = triangle_area(&p.verts) as f64;
+                match (inside(p), p.region == region) {
+                    (true, true) => under += a,
+                    (false, true) => outside += a,
+                    // Slivers along the diagonal form regions of their own; they are
+                    // dropped when the patches are made (under 1e-7 of the triangle).
+                    (true, false) => assert!(
+                        a <= 1e-7 * triangle_area(&t) as f64,
+                        "max_len {max_len}: a piece under the lamp in another region: {:?} {a} {} {region}",
+                        p.verts,
+                        p.region
+                    ),
+                    (false, false) => {}
+                }
+            }
+            assert!(
+                outside < 1e-9,
+                "max_len {max_len}: {outside} m² outside in the lamp's region"
+            );
+            assert!(
+                (under - footprint).abs() < 1e-9,
+                "max_len {max_len}: {under} against {footprint}"
+            );
         }
     }
 }

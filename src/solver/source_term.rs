@@ -24,13 +24,11 @@ pub(super) fn external_factor(
     }
     let e = &mesh.elements[i];
     let p = &mesh.patches[e.patch as usize];
-    let (h, rays) = direct::irradiance(
+    let (h, rays) = direct::element_irradiance(
         &mesh.frame(),
         bvh,
         external,
-        e.centroid(),
-        e.normal,
-        p.scene_triangle,
+        (e.centroid(), e.normal, p.scene_triangle),
         form_factor::element_seed(e),
     );
     (if h.is_finite() { h } else { Vec3::ZERO }, rays)

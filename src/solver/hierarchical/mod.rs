@@ -33,6 +33,7 @@
 //! ids, links are sorted by (receiver, source), and every sum runs in that order.
 
 pub(super) mod clusters;
+mod external;
 mod incremental;
 mod inspect;
 mod link;
@@ -275,6 +276,9 @@ pub(super) struct Hierarchy {
     node_moments: Vec<Moments>,
     /// Gathered H at each node as a linear function: its values at the node's corners.
     node_h: Vec<[Vec3; 3]>,
+    /// Per node, the range of the external light's irradiance over it (see [`external`]),
+    /// NaN until a refinement round asks for it.
+    node_external_range: Vec<f32>,
     cluster_b: Vec<Vec3>,
     /// What each cluster's surfaces send by direction: see [`Facing`].
     cluster_facing: Vec<Facing>,
@@ -356,6 +360,7 @@ impl Hierarchy {
             node_corners: Vec::new(),
             node_moments: Vec::new(),
             node_h: Vec::new(),
+            node_external_range: Vec::new(),
             element_node: Vec::new(),
             leaf_cap: Vec::new(),
             basis: None,
@@ -390,6 +395,7 @@ impl Hierarchy {
         self.node_corners.resize(n, [Vec3::ZERO; 3]);
         self.node_moments.resize(n, Moments::default());
         self.node_h.resize(n, [Vec3::ZERO; 3]);
+        self.node_external_range.resize(n, f32::NAN);
         if old == 0 {
             for (p, patch) in mesh.patches.iter().enumerate() {
                 self.node_patch[patch.root as usize] = p as u32;

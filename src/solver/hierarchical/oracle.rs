@@ -22,6 +22,7 @@
 //! in parallel) until no link needs it, so one round refines as deep as the current
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
 
+use super::external;
 use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
@@ -41,6 +42,9 @@ const CLUSTER_STRICTNESS: f32 = 4.0;
 #[derive(Default)]
 pub(super) struct Round {
     threshold: f32,
+    /// The threshold the round began with, which the external light's splits keep when
+    /// the link budget makes `threshold` infinite (they add elements, not links).
+    external_threshold: f32,
     /// Before the first sweep only the emitters have light, so every other link would stay
     /// at the top, where cluster transfers are coarsest (the first solution came out 50 %
     /// too bright on the Cornell box). The first round takes each source's B to be its
@@ -192,10 +196,9 @@ impl View<'_> {
         }
     }
 
-    /// Whether a leaf surface node may be split (its children are at least the minimum size).
+    /// Whether a leaf surface node may be split (see [`can_split`]).
     fn leaf_can_split(&self, n: u32) -> bool {
-        let size = (2.0 * self.h.node_area[n as usize] as f64).sqrt();
-        size * 0.5 >= self.min_size * 0.999
+        can_split(self.h.node_area[n as usize], self.min_size)
     }
 
     /// Spread of the children's radiosity (largest channel) of a surface node.
@@ -334,9 +337,13 @@ impl View<'_> {
         let surfaces = l.receiver.cluster().is_none() && l.source.cluster().is_none();
         // Which ends may split, in order of preference. Between surfaces the point-to-
         // polygon factor integrates the source exactly, so the kernel's variation is the
-        // receiver's to resolve; the source splits for its own variation of B, or, at a
-        // shadow boundary, when it is more than four times the receiver's area and the
-        // receiver cannot split (finer visibility). With a cluster the larger end splits.
+        // receiver's to resolve; the source splits for its own variation of B, or when the
+        // receiver cannot split and either the source's variation alone is above the
+        // threshold or, at a shadow boundary, the source is more than four times the
+        // receiver's area (finer visibility). With a cluster the larger end splits.
+        // (Without the first fallback, a link whose two parts were about equal kept or
+        // split its source by which part came out larger in the last digit: the same link
+        // at half the light refined where it had been kept.)
         let order: &[(NodeId, Decision)] = if !surfaces {
             if r.radius >= s.radius {
                 &[
@@ -351,7 +358,7 @@ impl View<'_> {
             }
         } else if variation > kernel {
             &[(l.source, Decision::Source)]
-        } else if l.partial() && s.area > 4.0 * r.area {
+        } else if (l.partial() && s.area > 4.0 * r.area) || variation > threshold {
             &[
                 (l.receiver, Decision::Receiver),
                 (l.source, Decision::Source),
@@ -424,6 +431,12 @@ impl View<'_> {
 
 /// Whether some corner of surface `r` lies in front of surface `s` and some corner of `s`
 /// above `r`'s plane (so part of `r` may see part of `s`); clusters always may.
+/// Whether a leaf of `area` may be split: its children are at least `min_size` (as
+/// `sqrt(2 · area)`).
+fn can_split(area: f32, min_size: f64) -> bool {
+    (2.0 * area as f64).sqrt() * 0.5 >= min_size * 0.999
+}
+
 fn straddles(r: &Shape, s: &Shape) -> bool {
     match (r, s) {
         (
@@ -583,6 +596,7 @@ impl Solver {
                 };
                 Round {
                     threshold,
+                    external_threshold: threshold,
                     ambient,
                     work: std::mem::take(&mut h.links),
                     changed,
@@ -722,20 +736,74 @@ impl Solver {
             }
             return Ok(false);
         }
-        if round.waiting.is_empty() {
+        // Every generation is decided: split the leaves the waiting links need and those
+        // the external light asks for, then decide the waiting links again.
+        let Some(lit) = self.external_splits(h, min_size, round.external_threshold) else {
+            return Ok(false);
+        };
+        if round.waiting.is_empty() && lit.is_empty() {
             return Ok(true);
         }
-        // Every generation is decided: split the leaves the waiting links need, then decide
-        // those links again.
         let mut leaves = std::mem::take(&mut round.leaves);
+        leaves.extend(lit);
         leaves.sort_unstable();
         leaves.dedup();
         if !self.split_leaves(h, &leaves) {
             round.kept.append(&mut round.waiting);
             return Ok(true);
         }
+        round.changed = true;
         round.work = std::mem::take(&mut round.waiting);
         Ok(false)
+    }
+
+    /// The leaf nodes to split for the external light (see [`external`]): those that may
+    /// split and whose ρ · range / 2 is above `threshold`. The ranges not yet known are
+    /// computed first, a chunk per call, so a step keeps its time budget: `None` until
+    /// they all are.
+    fn external_splits(
+        &mut self,
+        h: &mut Hierarchy,
+        min_size: f64,
+        threshold: f32,
+    ) -> Option<Vec<u32>> {
+        if self.external.is_empty() || !(threshold > 0.0 && threshold.is_finite()) {
+            return Some(Vec::new());
+        }
+        let mesh = &self.mesh;
+        let candidate = |e: usize| {
+            let n = h.element_node[e] as usize;
+            (!mesh.patches[mesh.elements[e].patch as usize].covered
+                && can_split(h.node_area[n], min_size))
+            .then_some(n)
+        };
+        let missing: Vec<usize> = (0..mesh.elements.len())
+            .filter(|&e| candidate(e).is_some_and(|n| h.node_external_range[n].is_nan()))
+            .collect();
+        let chunk = 4096 * rayon::current_num_threads().max(1);
+        let now = &missing[..missing.len().min(chunk)];
+        let (bvh, external) = (&self.bvh, &self.external);
+        let ranges: Vec<(f32, u32)> = now
+            .par_iter()
+            .map(|&e| external::range(mesh, bvh, external, e))
+            .collect();
+        for (&e, (range, rays)) in now.iter().zip(ranges) {
+            h.node_external_range[h.element_node[e] as usize] = range;
+            self.stats.rays += rays as u64;
+        }
+        if missing.len() > chunk {
+            return None;
+        }
+        let reflectance = &self.reflectance;
+        Some(
+            (0..mesh.elements.len())
+                .filter_map(|e| {
+                    let n = candidate(e)?;
+                    let error = reflectance[e].max_element() * h.node_external_range[n] * 0.5;
+                    (error > threshold).then_some(n as u32)
+                })
+                .collect(),
+        )
     }
 
     /// Splits the leaf nodes `leaves` (and what 2:1 balance adds) in the mesh, carrying the
