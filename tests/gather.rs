@@ -276,46 +276,8 @@ fn the_sky_through_a_small_opening_is_gathered_at_the_point() {
     // uncertain, each by under half a hit: about 5 % at one standard deviation, 6.1 % RMS
     // measured): each of 9 points within 15 %, their RMS within 10 % (with 64 rays at the
     // point: 27 % RMS, the worst point 35 % off).
-    let ceiling = |x0: f32, x1: f32, z0: f32, z1: f32| {
-        quad_object(
-            "ceiling",
-            DMat4::IDENTITY,
-            [[x0, 1.0, z0], [x1, 1.0, z0], [x1, 1.0, z1], [x0, 1.0, z1]],
-            1,
-        )
-    };
-    let (h, far) = (0.2f32, 100.0f32);
-    let scene = Scene {
-        name: "opening".into(),
-        objects: vec![
-            quad_object(
-                "floor",
-                DMat4::IDENTITY,
-                [
-                    [-0.5, 0.0, -0.5],
-                    [-0.5, 0.0, 0.5],
-                    [0.5, 0.0, 0.5],
-                    [0.5, 0.0, -0.5],
-                ],
-                0,
-            ),
-            ceiling(-far, far, h, far),
-            ceiling(-far, far, -far, -h),
-            ceiling(-far, -h, -h, h),
-            ceiling(h, far, -h, h),
-        ],
-        materials: vec![
-            Material::diffuse("floor", Vec3::splat(RHO as f32)),
-            Material::diffuse("ceiling", Vec3::ZERO),
-        ],
-        lights: Vec::new(),
-        environment: Some(radiosity::scene::Environment {
-            sky: Vec3::ONE,
-            sun: None,
-        }),
-        images: Vec::new(),
-        warnings: Vec::new(),
-    };
+    let h = 0.2f32;
+    let scene = common::opening(RHO as f32, h);
     let xz: Vec<(f64, f64)> = (0..9)
         .map(|k| {
             (

@@ -10,13 +10,13 @@
 
 mod common;
 
-use common::{prepared, quad_object};
-use glam::{DMat4, DVec3, Vec3};
+use common::prepared;
+use glam::{DVec3, Vec3};
 use radiosity::analytic::parallel_square;
 use radiosity::light::direct;
 use radiosity::mesh::Reconstruction;
 use radiosity::pipeline::probe_values;
-use radiosity::scene::{Material, Object, Scene};
+use radiosity::scene::Scene;
 use radiosity::solver::{HierarchySettings, Method, SolverSettings};
 use std::f64::consts::PI;
 
@@ -24,48 +24,9 @@ const RHO: f64 = 0.5;
 /// Half the opening's side, m.
 const HALF: f32 = 0.2;
 
-/// The floor (1 m square, one quad) under the ceiling with the opening over its centre.
+/// The floor under the ceiling with the opening over its centre (see `common::opening`).
 fn opening() -> Scene {
-    let far = 100.0f32;
-    let ceiling = |x0: f32, x1: f32, z0: f32, z1: f32| -> Object {
-        quad_object(
-            "ceiling",
-            DMat4::IDENTITY,
-            [[x0, 1.0, z0], [x1, 1.0, z0], [x1, 1.0, z1], [x0, 1.0, z1]],
-            1,
-        )
-    };
-    Scene {
-        name: "opening".into(),
-        objects: vec![
-            quad_object(
-                "floor",
-                DMat4::IDENTITY,
-                [
-                    [-0.5, 0.0, -0.5],
-                    [-0.5, 0.0, 0.5],
-                    [0.5, 0.0, 0.5],
-                    [0.5, 0.0, -0.5],
-                ],
-                0,
-            ),
-            ceiling(-far, far, HALF, far),
-            ceiling(-far, far, -far, -HALF),
-            ceiling(-far, -HALF, -HALF, HALF),
-            ceiling(HALF, far, -HALF, HALF),
-        ],
-        materials: vec![
-            Material::diffuse("floor", Vec3::splat(RHO as f32)),
-            Material::diffuse("ceiling", Vec3::ZERO),
-        ],
-        lights: Vec::new(),
-        environment: Some(radiosity::scene::Environment {
-            sky: Vec3::ONE,
-            sun: None,
-        }),
-        images: Vec::new(),
-        warnings: Vec::new(),
-    }
+    common::opening(RHO as f32, HALF)
 }
 
 /// Floor points on a 10 × 10 grid over the middle 0.8 m, off the grid's symmetry.

@@ -353,7 +353,8 @@ mod tests {
             .abs();
         let inside = |p: &Piece| {
             let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
-            c.x < x1 && c.z > z0 && c.z < z1 && c.z > -c.x * 1.0058
+            // On the triangle's side of its diagonal from (0.278, −0.2796) to (−0.278, 0.2796).
+            c.x < x1 && c.z > z0 && c.z < z1 && c.z * 0.278 > -c.x * 0.2796
         };
         for max_len in [0.0, 0.05, 0.2] {
             let pieces = split(t, &cuts, max_len).expect("split");

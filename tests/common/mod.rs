@@ -57,6 +57,56 @@ pub fn floor(world_from_local: DMat4) -> Object {
     )
 }
 
+/// A 1 m square floor (one quad, material 0 of reflectance `rho`, facing +y) under a black
+/// ceiling 1 m above it with a square opening of half-side `half` over its centre, under a
+/// uniform sky of radiance L = 1. The ceiling runs 100 m out, so the sky past its edge is
+/// 10⁻⁴ of the hemisphere: the floor sees the sky only through the opening, and nothing
+/// else sends it light, so its irradiance is π L F(x → opening) (Howell's C-11 by
+/// superposition, `analytic::parallel_square`).
+#[allow(dead_code)]
+pub fn opening(rho: f32, half: f32) -> Scene {
+    let far = 100.0f32;
+    let ceiling = |x0: f32, x1: f32, z0: f32, z1: f32| {
+        quad_object(
+            "ceiling",
+            DMat4::IDENTITY,
+            [[x0, 1.0, z0], [x1, 1.0, z0], [x1, 1.0, z1], [x0, 1.0, z1]],
+            1,
+        )
+    };
+    Scene {
+        name: "opening".into(),
+        objects: vec![
+            quad_object(
+                "floor",
+                DMat4::IDENTITY,
+                [
+                    [-0.5, 0.0, -0.5],
+                    [-0.5, 0.0, 0.5],
+                    [0.5, 0.0, 0.5],
+                    [0.5, 0.0, -0.5],
+                ],
+                0,
+            ),
+            ceiling(-far, far, half, far),
+            ceiling(-far, far, -far, -half),
+            ceiling(-far, -half, -half, half),
+            ceiling(half, far, -half, half),
+        ],
+        materials: vec![
+            radiosity::scene::Material::diffuse("floor", Vec3::splat(rho)),
+            radiosity::scene::Material::diffuse("ceiling", Vec3::ZERO),
+        ],
+        lights: Vec::new(),
+        environment: Some(radiosity::scene::Environment {
+            sky: Vec3::ONE,
+            sun: None,
+        }),
+        images: Vec::new(),
+        warnings: Vec::new(),
+    }
+}
+
 /// `scene` meshed with the default settings but at most `max_elements` elements.
 #[allow(dead_code)]
 pub fn prepared(scene: &Scene, max_elements: usize) -> Prepared {

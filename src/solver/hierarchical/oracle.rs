@@ -429,14 +429,14 @@ impl View<'_> {
     }
 }
 
-/// Whether some corner of surface `r` lies in front of surface `s` and some corner of `s`
-/// above `r`'s plane (so part of `r` may see part of `s`); clusters always may.
 /// Whether a leaf of `area` may be split: its children are at least `min_size` (as
 /// `sqrt(2 · area)`).
 fn can_split(area: f32, min_size: f64) -> bool {
     (2.0 * area as f64).sqrt() * 0.5 >= min_size * 0.999
 }
 
+/// Whether some corner of surface `r` lies in front of surface `s` and some corner of `s`
+/// above `r`'s plane (so part of `r` may see part of `s`); clusters always may.
 fn straddles(r: &Shape, s: &Shape) -> bool {
     match (r, s) {
         (
