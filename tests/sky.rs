@@ -29,18 +29,6 @@ fn opening() -> Scene {
     common::opening(RHO as f32, HALF)
 }
 
-/// Floor points on a 10 × 10 grid over the middle 0.8 m, off the grid's symmetry.
-fn floor_points() -> Vec<(f64, f64)> {
-    (0..100)
-        .map(|k| {
-            (
-                -0.4 + 0.08 * (k % 10) as f64 + 0.013,
-                -0.4 + 0.08 * (k / 10) as f64 + 0.007,
-            )
-        })
-        .collect()
-}
-
 /// The opening is 4.7 % of the cosine-weighted hemisphere from the floor's centre and
 /// under 1 % from the grid's outer points: about 3 of 64 stratified rays escape at the
 /// centre, ±1 being ±30 %, and farther out all 64 can miss. An element takes 256 (16 × 16
@@ -51,7 +39,7 @@ fn an_elements_sky_seen_through_an_opening_takes_256_rays() {
     let p = prepared(&opening(), 100);
     let frame = p.mesh.frame();
     let mut sum = 0.0;
-    for (k, (x, z)) in floor_points().into_iter().enumerate() {
+    for (k, (x, z)) in common::opening_points().into_iter().enumerate() {
         let at = p.mesh.to_local(DVec3::new(x, 0.0, z));
         let own = p.mesh.locate_patch(at, Vec3::Y).expect("on the floor");
         let triangle = p.mesh.patches[own as usize].scene_triangle;
@@ -91,7 +79,7 @@ fn the_hierarchical_solve_splits_a_floor_where_the_sky_varies() {
         })
         .unwrap();
     common::converge(&mut s);
-    let xz = floor_points();
+    let xz = common::opening_points();
     let points: Vec<(DVec3, DVec3)> = xz
         .iter()
         .map(|&(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))

@@ -124,9 +124,19 @@ impl Mesh {
         marked
     }
 
-    /// Closes `marked` under 2:1 balance: after splitting, no two elements sharing a
-    /// display vertex may differ in size by more than a factor of 2 (up to rounding), so
-    /// every hanging vertex lies at the midpoint of a coarser edge.
+    /// Closes `marked` under 2:1 balance, so that every hanging vertex lies at the midpoint
+    /// of a coarser edge (where its Gouraud value is that edge's mean, without a crack):
+    ///
+    /// - an element split beside a coarser edge it hangs from (one of its corners is that
+    ///   edge's hanging midpoint and another that edge's end) would put a vertex at a
+    ///   quarter of it: the coarse element splits too. This is the rule between elements
+    ///   of different shapes: neighbouring input triangles, and the pieces of one triangle
+    ///   cut along contact lines (a long thin triangle's elements meet a wide one's along
+    ///   a few of their edges at many sizes). A sliver split so may go below the minimum
+    ///   size measured by area (√(2A)), not along its long edge, which halves to the
+    ///   length of its neighbour's edge beside it;
+    /// - no two elements sharing a display vertex may differ in size by more than a factor
+    ///   of 2 (up to rounding): the grading inside a patch's quadtree.
     pub fn balance(&self, marked: &mut [bool]) {
         let nv = self.display.positions.len();
         let after =
@@ -138,17 +148,36 @@ impl Mesh {
                 users[c as usize].push(i as u32);
             }
         }
+        // Hanging vertex → the coarse edge it lies on.
+        let mut hangs_on: Vec<Option<(u32, u32)>> = vec![None; nv];
+        for &[v, a, b] in &self.display.hanging {
+            hangs_on[v as usize] = Some((a, b));
+        }
         let mut queue: Vec<u32> = (0..self.elements.len() as u32)
             .filter(|&i| marked[i as usize])
             .collect();
+        let mark = |j: u32, marked: &mut [bool], queue: &mut Vec<u32>| {
+            if !marked[j as usize] {
+                marked[j as usize] = true;
+                queue.push(j);
+            }
+        };
         while let Some(i) = queue.pop() {
+            let corners = self.elements[i as usize].corners;
             let s = after(i as usize, marked);
-            for &c in &self.elements[i as usize].corners {
+            for &c in &corners {
                 for &j in &users[c as usize] {
-                    let j = j as usize;
-                    if !marked[j] && after(j, marked) > 2.0 * s * 1.01 {
-                        marked[j] = true;
-                        queue.push(j as u32);
+                    if after(j as usize, marked) > 2.0 * s * 1.01 {
+                        mark(j, marked, &mut queue);
+                    }
+                }
+                if let Some((a, b)) = hangs_on[c as usize]
+                    && (corners.contains(&a) || corners.contains(&b))
+                {
+                    for &j in &users[a as usize] {
+                        if users[b as usize].contains(&j) {
+                            mark(j, marked, &mut queue);
+                        }
                     }
                 }
             }

@@ -107,6 +107,20 @@ pub fn opening(rho: f32, half: f32) -> Scene {
     }
 }
 
+/// Points (x, z) of the floor of [`opening`] on a 10 × 10 grid over its middle 0.8 m, off
+/// the grid's symmetry.
+#[allow(dead_code)]
+pub fn opening_points() -> Vec<(f64, f64)> {
+    (0..100)
+        .map(|k| {
+            (
+                -0.4 + 0.08 * (k % 10) as f64 + 0.013,
+                -0.4 + 0.08 * (k / 10) as f64 + 0.007,
+            )
+        })
+        .collect()
+}
+
 /// `scene` meshed with the default settings but at most `max_elements` elements.
 #[allow(dead_code)]
 pub fn prepared(scene: &Scene, max_elements: usize) -> Prepared {
