@@ -14,14 +14,9 @@
 
 mod common;
 
-use common::prepared;
-use glam::{DVec3, Vec3};
-use radiosity::analytic::parallel_square;
-use radiosity::mesh::{Mesh, Reconstruction};
-use radiosity::pipeline::probe_values;
+use glam::Vec3;
+use radiosity::mesh::Mesh;
 use radiosity::scene::Scene;
-use radiosity::solver::{HierarchySettings, Method, SolverSettings};
-use std::f64::consts::PI;
 
 const RHO: f64 = 0.5;
 /// Half the opening's side, m.
@@ -94,18 +89,7 @@ fn unhung_vertices(mesh: &Mesh) -> Vec<(u32, usize)> {
 /// `the_hierarchical_solve_splits_a_floor_where_the_sky_varies`.
 #[test]
 fn a_fan_of_long_thin_triangles_is_refined_without_cracks() {
-    let p = prepared(&fan_opening(), 10);
-    let mut s = p
-        .solver(SolverSettings {
-            method: Method::Hierarchical,
-            hierarchy: HierarchySettings {
-                min_size: Some(0.02),
-                ..Default::default()
-            },
-            ..Default::default()
-        })
-        .unwrap();
-    common::converge(&mut s);
+    let s = common::opening_solved(&fan_opening());
     let mesh = s.mesh();
     let bad = unhung_vertices(mesh);
     assert!(
@@ -115,23 +99,7 @@ fn a_fan_of_long_thin_triangles_is_refined_without_cracks() {
         bad[0].0,
         bad[0].1
     );
-    let xz = common::opening_points();
-    let points: Vec<(DVec3, DVec3)> = xz
-        .iter()
-        .map(|&(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
-        .collect();
-    let got = probe_values(mesh, &s.radiosity(), &points, Reconstruction::Gouraud);
-    let mut sum = 0.0;
-    for ((x, z), b) in xz.iter().zip(&got) {
-        let want = RHO * PI * parallel_square(*x, *z, HALF as f64, 1.0);
-        let e = (b.x as f64 - want) / want;
-        sum += e * e;
-    }
-    let rms = (sum / 100.0).sqrt();
-    let leaves = mesh
-        .elements
-        .iter()
-        .filter(|e| mesh.patches[e.patch as usize].material == 0)
-        .count();
+    let rms = common::opening_gouraud_rms(&s, RHO, HALF);
+    let leaves = common::floor_leaves(mesh);
     assert!(rms < 0.10, "RMS {rms} over {leaves} floor leaves");
 }

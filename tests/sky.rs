@@ -14,10 +14,7 @@ use common::prepared;
 use glam::{DVec3, Vec3};
 use radiosity::analytic::parallel_square;
 use radiosity::light::direct;
-use radiosity::mesh::Reconstruction;
-use radiosity::pipeline::probe_values;
 use radiosity::scene::Scene;
-use radiosity::solver::{HierarchySettings, Method, SolverSettings};
 use std::f64::consts::PI;
 
 const RHO: f64 = 0.5;
@@ -67,38 +64,10 @@ fn an_elements_sky_seen_through_an_opening_takes_256_rays() {
 /// floor leaves; the two unsplit triangles cannot come within several times that).
 #[test]
 fn the_hierarchical_solve_splits_a_floor_where_the_sky_varies() {
-    let p = prepared(&opening(), 10);
-    let mut s = p
-        .solver(SolverSettings {
-            method: Method::Hierarchical,
-            hierarchy: HierarchySettings {
-                min_size: Some(0.02),
-                ..Default::default()
-            },
-            ..Default::default()
-        })
-        .unwrap();
-    common::converge(&mut s);
-    let xz = common::opening_points();
-    let points: Vec<(DVec3, DVec3)> = xz
-        .iter()
-        .map(|&(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
-        .collect();
-    let got = probe_values(s.mesh(), &s.radiosity(), &points, Reconstruction::Gouraud);
-    let mut sum = 0.0;
-    for ((x, z), b) in xz.iter().zip(&got) {
-        let want = RHO * PI * parallel_square(*x, *z, HALF as f64, 1.0);
-        let e = (b.x as f64 - want) / want;
-        sum += e * e;
-    }
-    let rms = (sum / 100.0).sqrt();
+    let s = common::opening_solved(&opening());
+    let rms = common::opening_gouraud_rms(&s, RHO, HALF);
     let floor = s.mesh().patches.iter().filter(|p| p.material == 0).count();
-    let leaves = s
-        .mesh()
-        .elements
-        .iter()
-        .filter(|e| s.mesh().patches[e.patch as usize].material == 0)
-        .count();
+    let leaves = common::floor_leaves(s.mesh());
     assert!(
         rms < 0.10,
         "RMS {rms} over {leaves} floor leaves ({floor} patches)"

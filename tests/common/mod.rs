@@ -7,12 +7,13 @@
 //! an item is unused in some test binaries and used in others, and the lint, which looks at
 //! one binary at a time, cannot tell.
 
-use glam::{DMat4, Vec3};
-use radiosity::mesh::{Mesh, MeshSettings};
-use radiosity::pipeline::Prepared;
+use glam::{DMat4, DVec3, Vec3};
+use radiosity::analytic::parallel_square;
+use radiosity::mesh::{Mesh, MeshSettings, Reconstruction};
+use radiosity::pipeline::{Prepared, probe_values};
 use radiosity::scene::{Object, Scene};
 use radiosity::solver::form_factor::point_to_polygon;
-use radiosity::solver::{Method, Solver, SolverSettings, StepOutcome};
+use radiosity::solver::{HierarchySettings, Method, Solver, SolverSettings, StepOutcome};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
@@ -119,6 +120,54 @@ pub fn opening_points() -> Vec<(f64, f64)> {
             )
         })
         .collect()
+}
+
+/// `scene` (a variant of [`opening`]) meshed from its input triangles and solved with the
+/// hierarchical method down to 2 cm leaves, converged.
+#[allow(dead_code)]
+pub fn opening_solved(scene: &Scene) -> Solver {
+    let p = prepared(scene, 10);
+    let mut s = p
+        .solver(SolverSettings {
+            method: Method::Hierarchical,
+            hierarchy: HierarchySettings {
+                min_size: Some(0.02),
+                ..Default::default()
+            },
+            ..Default::default()
+        })
+        .unwrap();
+    converge(&mut s);
+    s
+}
+
+/// The relative RMS error of the viewer's Gouraud light at [`opening_points`] against the
+/// closed form ρ π L F(x → opening) (L = 1) of [`opening`] with floor reflectance `rho`
+/// and opening half-side `half`.
+#[allow(dead_code)]
+pub fn opening_gouraud_rms(s: &Solver, rho: f64, half: f32) -> f64 {
+    let xz = opening_points();
+    let points: Vec<(DVec3, DVec3)> = xz
+        .iter()
+        .map(|&(x, z)| (DVec3::new(x, 0.0, z), DVec3::Y))
+        .collect();
+    let got = probe_values(s.mesh(), &s.radiosity(), &points, Reconstruction::Gouraud);
+    let mut sum = 0.0;
+    for ((x, z), b) in xz.iter().zip(&got) {
+        let want = rho * std::f64::consts::PI * parallel_square(*x, *z, half as f64, 1.0);
+        let e = (b.x as f64 - want) / want;
+        sum += e * e;
+    }
+    (sum / xz.len() as f64).sqrt()
+}
+
+/// The leaves of the floor (material 0) of [`opening`].
+#[allow(dead_code)]
+pub fn floor_leaves(mesh: &Mesh) -> usize {
+    mesh.elements
+        .iter()
+        .filter(|e| mesh.patches[e.patch as usize].material == 0)
+        .count()
 }
 
 /// `scene` meshed with the default settings but at most `max_elements` elements.
