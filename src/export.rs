@@ -139,7 +139,7 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, bake: &Bake) -> Vec<u8> {
         .iter()
         .map(|o| o.world_from_local.inverse())
         .collect();
-    let midpoints = mesh.midpoints();
+    let t_vertices = mesh.t_vertices();
     for (e, element) in mesh.elements.iter().enumerate() {
         let patch = &mesh.patches[element.patch as usize];
         let Some(object) = scene.objects.get(patch.object as usize) else {
@@ -160,7 +160,7 @@ pub fn baked_glb(scene: &Scene, mesh: &Mesh, bake: &Bake) -> Vec<u8> {
         let p = primitives
             .entry((patch.object, patch.material, patch.back))
             .or_default();
-        mesh.conforming_triangles(e as u32, &midpoints, |corners| {
+        mesh.conforming_triangles(e as u32, &t_vertices, |corners| {
             for c in corners {
                 let uv = mesh
                     .texture_uv(e as u32, c.position, Slot::Base)

@@ -55,7 +55,13 @@ fn unhung_vertices(mesh: &Mesh) -> Vec<(u32, usize)> {
     let hanging: std::collections::HashSet<[u32; 3]> = d
         .hanging
         .iter()
-        .flat_map(|&[v, a, b]| [[v, a, b], [v, b, a]])
+        .filter(|h| h.is_midpoint())
+        .flat_map(|h| {
+            [
+                [h.vertex, h.edge[0], h.edge[1]],
+                [h.vertex, h.edge[1], h.edge[0]],
+            ]
+        })
         .collect();
     let mut bad = Vec::new();
     for (i, e) in mesh

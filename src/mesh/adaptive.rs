@@ -124,8 +124,9 @@ impl Mesh {
         marked
     }
 
-    /// Closes `marked` under 2:1 balance, so that every hanging vertex lies at the midpoint
-    /// of a coarser edge (where its Gouraud value is that edge's mean, without a crack):
+    /// Closes `marked` under 2:1 balance, so that every hanging vertex subdivision makes
+    /// lies at the midpoint of a coarser edge (a T-vertex the display takes from that
+    /// edge, without a crack, and the coarse side's next split uses):
     ///
     /// - an element split beside a coarser edge it hangs from (one of its corners is that
     ///   edge's hanging midpoint and another that edge's end) would put a vertex at a
@@ -136,7 +137,13 @@ impl Mesh {
     ///   size measured by area (√(2A)), not along its long edge, which halves to the
     ///   length of its neighbour's edge beside it;
     /// - no two elements sharing a display vertex may differ in size by more than a factor
-    ///   of 2 (up to rounding): the grading inside a patch's quadtree.
+    ///   of 2 (up to rounding): the grading inside a patch's quadtree;
+    /// - along a coarse edge with T-vertices off its midpoint (an input's T-junctions, see
+    ///   `hanging`), whose vertices refinement cannot meet, an element split beside it
+    ///   along the edge may not leave the edge more than twice as long as its own edge
+    ///   there: the coarse element splits too. Otherwise the display, continuous across
+    ///   the edge, takes the coarse edge's linear interpolation on the fine side as well,
+    ///   a band along the edge as wrong as the coarse side.
     pub fn balance(&self, marked: &mut [bool]) {
         let nv = self.display.positions.len();
         let after =
@@ -148,11 +155,18 @@ impl Mesh {
                 users[c as usize].push(i as u32);
             }
         }
-        // Hanging vertex → the coarse edge it lies on.
+        // Hanging midpoint → the coarse edge it lies on; the same for the other T-vertices.
         let mut hangs_on: Vec<Option<(u32, u32)>> = vec![None; nv];
-        for &[v, a, b] in &self.display.hanging {
-            hangs_on[v as usize] = Some((a, b));
+        let mut hangs_off: Vec<Option<(u32, u32)>> = vec![None; nv];
+        for h in &self.display.hanging {
+            let edge = (h.edge[0].min(h.edge[1]), h.edge[0].max(h.edge[1]));
+            match h.is_midpoint() {
+                true => hangs_on[h.vertex as usize] = Some(edge),
+                false => hangs_off[h.vertex as usize] = Some(edge),
+            }
         }
+        let position = |v: u32| self.display.positions[v as usize];
+        let length = |a: u32, b: u32| (position(a) - position(b)).length();
         let mut queue: Vec<u32> = (0..self.elements.len() as u32)
             .filter(|&i| marked[i as usize])
             .collect();
@@ -176,6 +190,22 @@ impl Mesh {
                 {
                     for &j in &users[a as usize] {
                         if users[b as usize].contains(&j) {
+                            mark(j, marked, &mut queue);
+                        }
+                    }
+                }
+                if let Some((a, b)) = hangs_off[c as usize] {
+                    // This element's shortest edge along the coarse edge from c, halved.
+                    let on_line =
+                        |w: u32| w == a || w == b || hangs_off[w as usize] == Some((a, b));
+                    let fine = corners
+                        .iter()
+                        .filter(|&&w| w != c && on_line(w))
+                        .map(|&w| 0.5 * length(c, w))
+                        .fold(f32::INFINITY, f32::min);
+                    for &j in &users[a as usize] {
+                        let coarse = length(a, b) * if marked[j as usize] { 0.5 } else { 1.0 };
+                        if users[b as usize].contains(&j) && coarse > 2.0 * fine * 1.01 {
                             mark(j, marked, &mut queue);
                         }
                     }

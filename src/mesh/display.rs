@@ -6,7 +6,7 @@
 //! averages, Cohen & Wallace, "Radiosity and Realistic Image Synthesis" §9.2) blends across
 //! a smooth surface but never across a crease or a material boundary.
 
-use super::{Element, Patch};
+use super::{Element, Hanging, Patch};
 use crate::geometry::orthonormal_basis;
 use glam::Vec3;
 use std::collections::HashMap;
@@ -48,11 +48,11 @@ impl std::str::FromStr for Reconstruction {
 pub struct DisplayMesh {
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
-    /// T-vertices left by adaptive subdivision: vertex `v` lies at the midpoint of the edge
-    /// (`a`, `b`) of a coarser element that does not use it. Its Gouraud value is taken
-    /// from that edge (the mean of `a` and `b`), so the shading has no crack there.
+    /// T-vertices (see `hanging`): a vertex inside the edge of a coarser element that does
+    /// not use it, at the edge's midpoint where subdivision left it, anywhere where the
+    /// input did. Its value is taken from that edge, so the shading has no crack there.
     /// Ordered coarse edges first, so chains of T-vertices resolve in one pass.
-    pub hanging: Vec<[u32; 3]>,
+    pub hanging: Vec<Hanging>,
     /// Which side of hard shadow edges vertices and elements are on (set by
     /// `solver::mark_hard_shadows`; `None`: no hard shadow edges).
     pub shadow_sides: Option<ShadowSides>,
@@ -108,6 +108,7 @@ impl DisplayMesh {
             )
         };
         let mut welded: HashMap<([i64; 3], u32, bool, u32), Vec<u32>> = HashMap::new();
+        let mut keys = Vec::new();
         for e in elements.iter_mut() {
             let patch = &patches[e.patch as usize];
             for k in 0..3 {
@@ -124,46 +125,59 @@ impl DisplayMesh {
                         let v = mesh.positions.len() as u32;
                         mesh.positions.push(p);
                         mesh.normals.push(e.normal);
+                        keys.push(key);
                         slots.push(v);
                         v
                     }
                 };
             }
         }
-        // T-vertices: a vertex of the same smooth surface at the midpoint of an element's
-        // edge is not one of its corners, so it hangs on that edge.
-        let mut hanging: Vec<(f32, [u32; 3])> = Vec::new();
-        let mut seen = std::collections::HashSet::new();
-        for e in elements.iter() {
-            let patch = &patches[e.patch as usize];
-            for k in 0..3 {
-                let (a, b) = (e.corners[k], e.corners[(k + 1) % 3]);
-                let m = (e.verts[k] + e.verts[(k + 1) % 3]) * 0.5;
-                if let Some(slots) = welded.get(&key(m, patch))
-                    && let Some(&v) = slots
-                        .iter()
-                        .find(|&&v| mesh.normals[v as usize].dot(e.normal) >= cos_smooth)
-                    && seen.insert(v)
-                {
-                    let len = (e.verts[k] - e.verts[(k + 1) % 3]).length();
-                    hanging.push((len, [v, a, b]));
-                }
-            }
-        }
-        hanging.sort_by(|x, y| y.0.total_cmp(&x.0));
-        mesh.hanging = hanging.into_iter().map(|h| h.1).collect();
+        // T-vertices: a vertex inside an element's edge that the element would have
+        // welded had it been its corner (same surface, same side of a contact line).
+        let same_surface = |v: u32, e: &Element| {
+            let v = v as usize;
+            mesh.normals[v].dot(e.normal) >= cos_smooth
+                && key(mesh.positions[v], &patches[e.patch as usize]) == keys[v]
+        };
+        mesh.hanging = super::hanging::find(elements, &mesh.positions, on_line, same_surface);
         mesh
     }
 
     /// Gouraud vertex values: for each vertex the value at the vertex of the least-squares
     /// plane through the values of the elements that use it (see `fit`); T-vertices take
-    /// the mean of their coarse edge's ends.
+    /// their coarse edge's value at their parameter on it.
     pub fn vertex_values(&self, elements: &[Element], values: &[Vec3]) -> Vec<Vec3> {
         let (mut values, _) = self.fit(elements, values);
-        for &[v, a, b] in &self.hanging {
-            values[v as usize] = (values[a as usize] + values[b as usize]) * 0.5;
-        }
+        self.resolve_hanging(|h| {
+            let [a, b] = h.edge.map(|i| values[i as usize]);
+            let value = a + (b - a) * h.t;
+            let change = (value - values[h.vertex as usize]).abs().max_element();
+            values[h.vertex as usize] = value;
+            (change, value.abs().max_element())
+        });
         values
+    }
+
+    /// Sets every T-vertex from its edge with `set(hanging)`, which returns
+    /// how much the vertex changed and its size; passes in coarse-edge order until no
+    /// vertex changes by more than 10⁻⁶ of the largest. One pass is exact unless T-vertices
+    /// hang on each other, which they do where two elements' edges overlap along a line
+    /// from opposite sides, each with a corner inside the other's edge (an input's
+    /// T-junctions): then the passes are a fixed-point iteration that converges, each
+    /// vertex's dependence on itself through the other being a product of parameters
+    /// below 1.
+    fn resolve_hanging(&self, mut set: impl FnMut(&Hanging) -> (f32, f32)) {
+        for pass in 0..64 {
+            let (mut change, mut size) = (0.0f32, 0.0f32);
+            for h in &self.hanging {
+                let (c, s) = set(h);
+                change = change.max(c);
+                size = size.max(s);
+            }
+            if pass > 0 && change <= 1e-6 * size {
+                break;
+            }
+        }
     }
 
     /// The reconstructed value at barycentric point `bary` of element `e`, given element
@@ -204,8 +218,9 @@ impl DisplayMesh {
 /// follow from C¹ between the three sub-triangles. Linear light is reproduced exactly.
 /// The vertex gradient is the least-squares plane through the vertex value and the
 /// centroids' values of the elements around it, weighted by area. T-vertices take the
-/// coarse edge's cubic (value and slope along the edge at its midpoint) and the mean of
-/// its ends' cross-edge slopes, so refinement leaves neither a crack nor a crease. Across a
+/// coarse edge's cubic (value and slope along the edge at their parameter on it) and its
+/// ends' cross-edge slopes interpolated linearly, so refinement leaves neither a crack nor
+/// a crease. Across a
 /// contact line vertices are not shared, and the surface jumps.
 #[derive(Clone, Debug, Default)]
 pub struct Hermite {
@@ -416,23 +431,33 @@ impl DisplayMesh {
     /// Vertex values and gradients for [`Reconstruction::Hermite`].
     pub fn hermite(&self, elements: &[Element], values: &[Vec3]) -> Hermite {
         let (mut vals, mut grads) = self.fit(elements, values);
-        // T-vertices: the coarse edge's cubic at its midpoint (value, and slope along it).
-        for &[v, a, b] in &self.hanging {
-            let (v, a, b) = (v as usize, a as usize, b as usize);
+        // T-vertices: the coarse edge's cubic at their parameter t on it (value, and slope
+        // along it; the cubic Hermite basis), and across the edge the ends' slopes
+        // interpolated linearly, since the coarse element's cross-edge slope is linear
+        // along the edge.
+        self.resolve_hanging(|h| {
+            let (v, [a, b], t) = (h.vertex as usize, h.edge.map(|i| i as usize), h.t);
             let d = self.positions[b] - self.positions[a];
             let len2 = d.length_squared().max(f32::MIN_POSITIVE);
             let m0 = along(&grads[a], d);
             let m1 = along(&grads[b], d);
-            vals[v] = (vals[a] + vals[b]) * 0.5 + (m0 - m1) / 8.0;
-            let slope = (vals[b] - vals[a]) * 1.5 - (m0 + m1) / 4.0; // d/dt over the edge
-            // Across the edge (in the surface, normal to it): the mean of the ends' slopes,
-            // since the coarse element's cross-edge slope is linear along the edge.
+            let (t2, t3) = (t * t, t * t * t);
+            let value = vals[a] * (2.0 * t3 - 3.0 * t2 + 1.0)
+                + m0 * (t3 - 2.0 * t2 + t)
+                + vals[b] * (3.0 * t2 - 2.0 * t3)
+                + m1 * (t3 - t2);
+            let slope = (vals[b] - vals[a]) * (6.0 * t - 6.0 * t2)
+                + m0 * (3.0 * t2 - 4.0 * t + 1.0)
+                + m1 * (3.0 * t2 - 2.0 * t); // d/dt over the edge
             let across = self.normals[v].cross(d).normalize_or_zero();
+            let change = (value - vals[v]).abs().max_element();
+            vals[v] = value;
             for ch in 0..3 {
-                let n = (grads[a][ch].dot(across) + grads[b][ch].dot(across)) * 0.5;
+                let n = grads[a][ch].dot(across) * (1.0 - t) + grads[b][ch].dot(across) * t;
                 grads[v][ch] = d * (slope[ch] / len2) + across * n;
             }
-        }
+            (change, value.abs().max_element())
+        });
         Hermite {
             values: vals,
             gradients: grads,

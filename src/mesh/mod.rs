@@ -24,6 +24,7 @@ mod build;
 mod conforming;
 mod contact;
 mod display;
+mod hanging;
 mod hard_shadows;
 mod shadow;
 mod sizing;
@@ -32,10 +33,11 @@ mod texture;
 mod validate;
 
 pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
-pub use conforming::{Corner, Midpoints};
+pub use conforming::{Corner, TVertices};
 pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
 };
+pub use hanging::Hanging;
 pub use hard_shadows::LightTargets;
 pub use texture::{PatchTexture, barycentric};
 

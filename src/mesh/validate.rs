@@ -89,12 +89,11 @@ impl Mesh {
         if !finite(&self.display.positions) || !finite(&self.display.normals) {
             return Err("display position or normal not finite".into());
         }
-        if let Some(h) = self
-            .display
-            .hanging
-            .iter()
-            .find(|h| h.iter().any(|&v| v as usize >= nv))
-        {
+        if let Some(h) = self.display.hanging.iter().find(|h| {
+            h.vertex as usize >= nv
+                || h.edge.iter().any(|&v| v as usize >= nv)
+                || !(h.t > 0.0 && h.t < 1.0)
+        }) {
             return Err(format!("T-vertex {h:?} of {nv} display vertices"));
         }
         if let Some(sides) = &self.display.shadow_sides

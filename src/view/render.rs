@@ -763,7 +763,7 @@ fn triangles(
     mesh: &Mesh,
     materials: &[Material],
 ) -> (Vec<Vertex>, Vec<(TextureKey, std::ops::Range<u32>)>) {
-    let midpoints = mesh.midpoints();
+    let t_vertices = mesh.t_vertices();
     let mut groups: Vec<(TextureKey, Vec<Vertex>)> = Vec::new();
     for (i, e) in mesh.elements.iter().enumerate() {
         let patch = &mesh.patches[e.patch as usize];
@@ -782,7 +782,7 @@ fn triangles(
                 .map_or([0.0; 2], |uv| uv.to_array())
         };
         let out = &mut groups[group].1;
-        mesh.conforming_triangles(i as u32, &midpoints, |corners| {
+        mesh.conforming_triangles(i as u32, &t_vertices, |corners| {
             for c in corners {
                 out.push(Vertex {
                     position: c.position.to_array(),
