@@ -158,9 +158,9 @@ impl DisplayMesh {
         values
     }
 
-    /// Sets every T-vertex from its edge with `set(hanging)`, which returns
-    /// how much the vertex changed and its size; passes in coarse-edge order until no
-    /// vertex changes by more than 10⁻⁶ of the largest. One pass is exact unless T-vertices
+    /// Sets every T-vertex from its edge with `set(hanging)`, which returns how much the
+    /// vertex changed and its size; passes in coarse-edge order until no vertex changes by
+    /// more than 10⁻⁶ of the largest (at most 64). One pass is exact unless T-vertices
     /// hang on each other, which they do where two elements' edges overlap along a line
     /// from opposite sides, each with a corner inside the other's edge (an input's
     /// T-junctions): then the passes are a fixed-point iteration that converges, each
@@ -220,8 +220,7 @@ impl DisplayMesh {
 /// centroids' values of the elements around it, weighted by area. T-vertices take the
 /// coarse edge's cubic (value and slope along the edge at their parameter on it) and its
 /// ends' cross-edge slopes interpolated linearly, so refinement leaves neither a crack nor
-/// a crease. Across a
-/// contact line vertices are not shared, and the surface jumps.
+/// a crease. Across a contact line vertices are not shared, and the surface jumps.
 #[derive(Clone, Debug, Default)]
 pub struct Hermite {
     pub values: Vec<Vec3>,

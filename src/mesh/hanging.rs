@@ -45,9 +45,9 @@ impl Hanging {
 /// either a few f32 roundings of the coordinates or 10⁻³ of the distance to the nearer
 /// end. The second bound keeps a vertex of a neighbouring sliver out: near the apex of a
 /// fan of long thin triangles, a triangle's corner lies within any fixed distance of the
-/// next one's edge, but at an angle to it as seen from the apex. A
-/// vertex inside several edges hangs on the longest. Ordered longest edge first, so that
-/// an edge whose ends hang themselves is resolved before the vertices on it.
+/// next one's edge, but at an angle to it as seen from the apex. A vertex inside several
+/// edges hangs on the longest. Ordered longest edge first, so that an edge whose ends hang
+/// themselves is resolved before the vertices on it.
 pub(super) fn find(
     elements: &[Element],
     positions: &[Vec3],
