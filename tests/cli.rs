@@ -82,10 +82,16 @@ fn solve_writes_stats_and_a_baked_glb() {
     // Converged: the last sweep changed B by at most the tolerance (1e-3) scaled by
     // 1 − ρ̄ ≤ 1.
     assert!(stats["residual"].as_f64().unwrap() <= 1e-3);
-    // 28 bytes a link (`solver/hierarchical/link.rs`).
-    assert_eq!(
+    // 22 bytes a link (`solver/hierarchical/table.rs`: 16 for what the sweeps read, 6 for
+    // what the refinement rounds read, kept since this solve is not cut by the link
+    // budget) and 8 per receiver, which has one link or more.
+    let (bytes, links) = (
         stats["link_bytes"].as_u64().unwrap(),
-        28 * stats["links"].as_u64().unwrap()
+        stats["links"].as_u64().unwrap(),
+    );
+    assert!(
+        bytes > 22 * links && bytes <= 30 * links + 4,
+        "{bytes} bytes for {links} links"
     );
     // Converged, so the links' index by source for edits is made: a u32 per link and one
     // per node and cluster (`solver/hierarchical/incremental.rs`).

@@ -100,8 +100,9 @@ pub struct SolveOptions {
     /// Hierarchical: start from every pair of patches instead of the root cluster.
     #[arg(long)]
     pub no_clustering: bool,
-    /// Hierarchical: about the most links (28 bytes each) the solution may hold; when
-    /// refinement passes it, it stops after the generation under way (the stats say so)
+    /// Hierarchical: about the most links (16–22 bytes each in the solution, 28 while a
+    /// refinement round holds them) the solution may hold, at most 2^27; when refinement
+    /// passes it, it stops after the generation under way (the stats say so)
     #[arg(long, default_value_t = HierarchySettings::default().max_links)]
     pub max_links: usize,
 }

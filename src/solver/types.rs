@@ -98,9 +98,15 @@ pub struct HierarchySettings {
     pub max_elements: usize,
     /// About the most links the hierarchy may hold (a memory bound): when a refinement
     /// round passes it, refinement stops there for the rest of the solve (the generation
-    /// under way is the last), and the stats say so (`link_budget_reached`).
+    /// under way is the last), and the stats say so (`link_budget_reached`). Taken as at
+    /// most [`MAX_LINK_BUDGET`].
     pub max_links: usize,
 }
+
+/// The largest link budget there is: a generation turns each link into at most 16 (a
+/// node linked to itself, split on both sides), so the links stay below 2³¹, within the
+/// u32 offsets of the solution's link table (and 3.7 GB at 28 bytes a link).
+pub const MAX_LINK_BUDGET: usize = 1 << 27;
 
 impl Default for HierarchySettings {
     fn default() -> Self {

@@ -26,8 +26,8 @@
 //! of the changed nodes instead of all links; where more than a quarter of the elements or
 //! of the links would be touched, the full sweep is cheaper and runs instead.
 
-use super::link::Link;
-use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_from_corners};
+use super::table::{LinkTable, StoredLink};
+use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_at};
 use crate::mesh::Mesh;
 use crate::solver::ELEMENT_CHUNK;
 use glam::{DVec3, Vec3};
@@ -48,13 +48,13 @@ pub(super) struct BySource {
 
 impl BySource {
     /// A counting sort of the links by source key: two passes over them.
-    pub fn build(links: &[Link], nodes: usize, clusters: usize) -> BySource {
+    pub fn build(links: &LinkTable, nodes: usize, clusters: usize) -> BySource {
         let key = |id: NodeId| match id.cluster() {
             Some(c) => nodes + c,
             None => id.0 as usize,
         };
         let mut start = vec![0u32; nodes + clusters + 1];
-        for l in links {
+        for (_, l) in links.iter() {
             start[key(l.source) + 1] += 1;
         }
         for k in 1..start.len() {
@@ -62,7 +62,7 @@ impl BySource {
         }
         let mut next = start.clone();
         let mut by = vec![0u32; links.len()];
-        for (i, l) in links.iter().enumerate() {
+        for (i, (_, l)) in links.iter().enumerate() {
             let k = key(l.source);
             by[next[k] as usize] = i as u32;
             next[k] += 1;
@@ -212,10 +212,11 @@ impl Hierarchy {
                 bits &= bits - 1;
             }
         }
-        let receiver = |i: &u32| self.links[*i as usize].receiver;
-        let changes: Vec<Change> = reached
-            .par_chunk_by(|a, b| receiver(a) == receiver(b))
-            .map(|group| self.change_at(mesh, group, &sent))
+        let changes: Vec<Change> = self
+            .links
+            .split_by_receiver(&reached)
+            .into_par_iter()
+            .map(|(r, group)| self.change_at(mesh, r, group, &sent))
             .collect();
 
         // The change of each leaf's H below the receivers that changed: the change of its
@@ -327,16 +328,15 @@ impl Hierarchy {
         (nodes, clusters)
     }
 
-    /// What one receiver's gathered H changes by over the links at indices `group` (all
+    /// What receiver `r`'s gathered H changes by over the links at indices `group` (all
     /// to it, in link order, all from sources that changed): the terms of
     /// [`Hierarchy::gather`] for these links, each source's value now less what it sent
     /// before (`sent`), each clamped as the gather clamps it.
-    fn change_at(&self, mesh: &Mesh, group: &[u32], sent: &Sent) -> Change {
-        let r = self.links[group[0] as usize].receiver;
-        let group = group.iter().map(|&i| &self.links[i as usize]);
+    fn change_at(&self, mesh: &Mesh, r: NodeId, group: &[u32], sent: &Sent) -> Change {
+        let group = group.iter().map(|&i| self.links.link(i as usize));
         // A source's change towards `at`, and for a cluster source the unit direction
         // from `at` to it.
-        let change = |l: &Link, at: Vec3| -> (Vec3, Option<Vec3>) {
+        let change = |l: &StoredLink, at: Vec3| -> (Vec3, Option<Vec3>) {
             match l.source.cluster() {
                 Some(c) => {
                     let (d, to_source) = sent.send[sent.at_cluster[c] as usize].seen_from(at);
@@ -344,7 +344,8 @@ impl Hierarchy {
                 }
                 None => {
                     let [now, then] = &sent.corners[sent.at_node[l.source.0 as usize] as usize];
-                    (sent_from_corners(now, l) - sent_from_corners(then, l), None)
+                    let w = l.transfer.toward();
+                    (sent_at(now, w) - sent_at(then, w), None)
                 }
             }
         };
@@ -355,8 +356,8 @@ impl Hierarchy {
                 let mut o = Octants::default();
                 for l in group {
                     let (d, to_source) = change(l, at);
-                    let e = d * l.factor();
-                    if l.spread().is_infinite() {
+                    let e = d * l.transfer.factor();
+                    if l.transfer.spread().is_infinite() {
                         o.add_around(e * cluster.area / cluster.abs_area.element_sum());
                     } else {
                         let to_source = to_source.unwrap_or_else(|| {
@@ -372,7 +373,7 @@ impl Hierarchy {
                 let mut h = [Vec3::ZERO; 3];
                 for l in group {
                     let d = change(l, at).0;
-                    let c = l.corners();
+                    let c = l.transfer.corners();
                     for k in 0..3 {
                         h[k] += d * c[k];
                     }

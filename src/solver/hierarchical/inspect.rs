@@ -4,7 +4,8 @@
 //! a leaf receives what all of them gather: `Hierarchy::leaf_irradiance_linear`, then `Hierarchy::capped`), each with where
 //! its source is, what it carries and the oracle's estimate of its error.
 
-use super::{Hierarchy, Link, NONE, NodeId};
+use super::table::BF16_NAN;
+use super::{NONE, NodeId};
 use crate::solver::Solver;
 use glam::Vec3;
 
@@ -44,15 +45,6 @@ pub struct ElementLinks {
     pub links: Vec<LinkView>,
 }
 
-impl Hierarchy {
-    /// The links whose receiver is `id`: a run of the sorted list.
-    fn links_to(&self, id: NodeId) -> &[Link] {
-        let start = self.links.partition_point(|l| l.receiver < id);
-        let end = self.links.partition_point(|l| l.receiver <= id);
-        &self.links[start..end]
-    }
-}
-
 impl Solver {
     /// The links that deliver element `element`'s light, with its level; `None` unless the
     /// method is hierarchical and the element exists. Between refinement rounds these are
@@ -76,14 +68,14 @@ impl Solver {
         }
         let mut links = Vec::new();
         for (up, &r) in receivers.iter().enumerate() {
-            for l in h.links_to(r) {
-                let estimate = self.link_estimate(h, l);
+            for l in h.links.to(r) {
+                let estimate = self.link_estimate(h, &l.to(r, [BF16_NAN; 3]));
                 links.push(LinkView {
                     receiver: h.centre(mesh, r),
                     source: h.centre(mesh, l.source),
                     from_cluster: l.source.cluster().is_some(),
                     up: up as u32,
-                    irradiance: h.source_b(l, h.centre(mesh, r)) * l.factor(),
+                    irradiance: h.source_b(l, h.centre(mesh, r)) * l.transfer.factor(),
                     error: estimate.error,
                     threshold: estimate.threshold,
                 });

@@ -38,6 +38,7 @@ mod incremental;
 mod inspect;
 mod link;
 mod oracle;
+mod table;
 #[cfg(test)]
 mod tests;
 pub(super) mod transfer;
@@ -54,6 +55,7 @@ use link::Link;
 use rayon::prelude::*;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
+use table::{LinkTable, StoredLink};
 
 /// A node of the hierarchy: a quadtree node of `Mesh::nodes` or, with the top bit set, a
 /// cluster.
@@ -237,8 +239,14 @@ fn linear_at(mesh: &Mesh, node: u32, corners: &[Vec3; 3], x: Vec3) -> Vec3 {
 /// What a surface source whose linear B has the values `corners` at its corners sends
 /// along link `l`: that B at the point the receiver sees it best (the link's kernel
 /// centroid), never negative.
-fn sent_from_corners(corners: &[Vec3; 3], l: &Link) -> Vec3 {
-    mix(corners, l.toward()).max(Vec3::ZERO)
+fn sent_from_corners(corners: &[Vec3; 3], l: &StoredLink) -> Vec3 {
+    sent_at(corners, l.transfer.toward())
+}
+
+/// What a surface source whose linear B has the values `corners` at its corners sends from
+/// the point of barycentric weights `w`: never negative.
+fn sent_at(corners: &[Vec3; 3], w: [f32; 3]) -> Vec3 {
+    mix(corners, w).max(Vec3::ZERO)
 }
 
 /// The moments behind a surface node's linear fit (see [`Hierarchy::pull`]), in its
@@ -261,8 +269,8 @@ enum Stage {
 /// B, E', ρ and E).
 pub(super) struct Hierarchy {
     clusters: Clusters,
-    /// Sorted by (receiver, source).
-    links: Vec<Link>,
+    /// Sorted by (receiver, source), stored by receiver.
+    links: LinkTable,
     /// Per mesh node: parent node (`NONE` at a patch root), patch, area, B and gathered H.
     parent: Vec<u32>,
     node_patch: Vec<u32>,
@@ -352,7 +360,7 @@ impl Hierarchy {
             cluster_send: vec![Sender::default(); clusters.nodes.len()],
             cluster_h: vec![Octants::default(); clusters.nodes.len()],
             clusters,
-            links: Vec::new(),
+            links: LinkTable::default(),
             parent: Vec::new(),
             node_patch: Vec::new(),
             node_area: Vec::new(),
@@ -446,7 +454,7 @@ impl Hierarchy {
     /// surface node's linear fit at the link's kernel centroid
     /// (`transfer::kernel_centroid`, barycentric weights of the node's corners), never
     /// negative.
-    fn source_b(&self, l: &Link, at: Vec3) -> Vec3 {
+    fn source_b(&self, l: &StoredLink, at: Vec3) -> Vec3 {
         match l.source.cluster() {
             Some(c) => self.cluster_send[c].seen_from(at).0,
             None => sent_from_corners(&self.node_corners[l.source.0 as usize], l),
@@ -560,9 +568,8 @@ impl Hierarchy {
         let centre = |id: NodeId| self.centre(mesh, id);
         let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
             .links
-            .par_chunk_by(|a, b| a.receiver == b.receiver)
-            .map(|group| {
-                let r = group[0].receiver;
+            .par_groups()
+            .map(|(r, group)| {
                 let mut h = [Vec3::ZERO; 3];
                 let mut o = Octants::default();
                 if let Some(c) = r.cluster() {
@@ -578,8 +585,8 @@ impl Hierarchy {
                                 (centre(l.source) - at).normalize_or_zero(),
                             ),
                         };
-                        let e = b * l.factor();
-                        if l.spread().is_infinite() {
+                        let e = b * l.transfer.factor();
+                        if l.transfer.spread().is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
                             // carries the mean irradiance over the cluster's surfaces,
                             // arriving from every side.
@@ -592,7 +599,7 @@ impl Hierarchy {
                     let at = centre(r);
                     for l in group {
                         let b = self.source_b(l, at);
-                        let c = l.corners();
+                        let c = l.transfer.corners();
                         for k in 0..3 {
                             h[k] += b * c[k];
                         }
@@ -706,9 +713,14 @@ impl Hierarchy {
         self.links.len() + self.round.as_ref().map_or(0, oracle::Round::links)
     }
 
-    /// Bytes the links take.
+    /// Bytes the links take: the solution's table, or during a refinement round the
+    /// links it holds.
     pub fn link_bytes(&self) -> usize {
-        self.link_count() * std::mem::size_of::<Link>()
+        self.links.bytes()
+            + self
+                .round
+                .as_ref()
+                .map_or(0, |r| r.links() * std::mem::size_of::<Link>())
     }
 
     /// Bytes the links' index by source takes (see [`incremental`]), once made.
@@ -888,19 +900,21 @@ impl Solver {
     /// converged answer moves only within their tolerance (on the Cornell box, 6 links in
     /// 2.5 M differ after the later rounds, the errors against the reference not at all,
     /// and the sweeps drop from 21 to 17).
-    fn preview(&mut self, h: &mut Hierarchy, links: Vec<Link>) {
+    fn preview(&mut self, h: &mut Hierarchy, mut links: Vec<&Link>) {
         let saved = (
             h.node_b.clone(),
             h.node_corners.clone(),
             h.cluster_b.clone(),
         );
-        h.links = links;
-        h.links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
+        // Sorted by reference: the round's links are not copied.
+        links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
+        h.links = LinkTable::new(&links, false);
+        drop(links);
         // The caps belong to the links of the last round, not to these.
         let caps = std::mem::take(&mut h.leaf_cap);
         self.sweep(h, false);
         h.leaf_cap = caps;
-        h.links = Vec::new();
+        h.links = LinkTable::default();
         h.links_changed();
         (h.node_b, h.node_corners, h.cluster_b) = saved;
         self.note_first_solution(h);

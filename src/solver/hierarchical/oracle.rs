@@ -23,11 +23,13 @@
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
 
 use super::external;
+use super::table::LinkTable;
 use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
 use crate::mesh::Mesh;
 use crate::solver::refine::split_children;
+use crate::solver::types::MAX_LINK_BUDGET;
 use crate::solver::types::Stop;
 use crate::solver::{Method, Solver, external_factor};
 use glam::Vec3;
@@ -226,7 +228,7 @@ impl View<'_> {
     }
 
     fn kernel_error(&self, l: &Link) -> f32 {
-        self.reflectance(l.receiver) * l.spread() * self.source_b(l.source)
+        self.reflectance(l.receiver) * l.transfer.spread() * self.source_b(l.source)
     }
 
     /// Splits the receiver of a group of links whose linear transfers together miss the
@@ -281,7 +283,7 @@ impl View<'_> {
         } else {
             1.0
         };
-        let variation = rho * l.factor() * self.source_variation(l.source) * across;
+        let variation = rho * l.transfer.factor() * self.source_variation(l.source) * across;
         // A cluster's transfer errs the same way on every link (the far-field kernel of a
         // nearby cluster is low, as the mean of 1/r² exceeds 1/r̄²), so its errors add up
         // over a receiver's cluster links instead of averaging out, and a receiving
@@ -297,7 +299,7 @@ impl View<'_> {
         // (Judging a small receiving cluster's near pairs by the power they may carry let
         // tiny detail keep sampled transfers, and a furnace lined with slivers then missed
         // its closed form by 6 % at the slivers: `tests/hard_geometry.rs`.)
-        let error = if l.spread().is_infinite() && rho > 0.0 {
+        let error = if l.transfer.spread().is_infinite() && rho > 0.0 {
             f32::INFINITY
         } else {
             kernel + variation
@@ -358,7 +360,7 @@ impl View<'_> {
             }
         } else if variation > kernel {
             &[(l.source, Decision::Source)]
-        } else if (l.partial() && s.area > 4.0 * r.area) || variation > threshold {
+        } else if (l.transfer.partial() && s.area > 4.0 * r.area) || variation > threshold {
             &[
                 (l.receiver, Decision::Receiver),
                 (l.source, Decision::Source),
@@ -573,7 +575,7 @@ impl Solver {
                 if h.sweeps == 0 && h.links.is_empty() {
                     let (mut links, rays) = self.initial_links(h, min_size);
                     links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
-                    h.links = links;
+                    h.links = LinkTable::new(&links, true);
                     h.links_changed();
                     self.stats.rays += rays;
                     changed = true;
@@ -598,7 +600,7 @@ impl Solver {
                     threshold,
                     external_threshold: threshold,
                     ambient,
-                    work: std::mem::take(&mut h.links),
+                    work: h.links.take(),
                     changed,
                     basis,
                     ..Default::default()
@@ -612,7 +614,8 @@ impl Solver {
                 h.threshold = h.threshold.max(round.threshold);
                 let mut kept = std::mem::take(&mut round.kept);
                 kept.par_sort_unstable_by_key(|l| (l.receiver, l.source));
-                h.links = kept;
+                // Past the link budget no round runs again: the misses are not needed.
+                h.links = LinkTable::new(&kept, h.threshold.is_finite());
                 match round.basis.take() {
                     // The same links: what the last sweep computed from its input holds,
                     // once the node values are pulled from it again.
@@ -675,7 +678,6 @@ impl Solver {
                     let links = [&round.kept[..], &round.work, &round.waiting]
                         .into_iter()
                         .flatten()
-                        .copied()
                         .collect();
                     self.preview(h, links);
                 }
@@ -731,7 +733,7 @@ impl Solver {
             // (evaluated, and then kept, at an infinite threshold, so that those whose
             // ends overlap carry their sampled transfer), and later rounds keep it.
             let links = round.kept.len() + round.waiting.len() + round.pairs.len();
-            if links > self.settings.hierarchy.max_links {
+            if links > self.settings.hierarchy.max_links.min(MAX_LINK_BUDGET) {
                 round.threshold = f32::INFINITY;
             }
             return Ok(false);
