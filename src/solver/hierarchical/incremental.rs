@@ -265,14 +265,16 @@ impl Hierarchy {
             .enumerate()
             .with_min_len(ELEMENT_CHUNK)
             .for_each(|(e, (linear, gathered))| {
+                // Decided from short per-element arrays: the elements themselves (72 bytes
+                // each) are read only for the leaves that changed.
                 let n = this.element_node[e];
-                let element = &mesh.elements[e];
-                let c = this.clusters.patch_parent[element.patch as usize];
+                let c = this.element_cluster[e];
                 let from_cluster = c != NONE && pushed[c as usize];
                 let from_surface = n != NONE && below_surface[n as usize];
                 if !(from_cluster || from_surface) {
                     return;
                 }
+                let element = &mesh.elements[e];
                 // As `leaf_irradiance_linear` sums it, over the changes.
                 let mut d = Vec3::ZERO;
                 let x = element.centroid();
@@ -316,7 +318,7 @@ impl Hierarchy {
                 nodes.push(n);
                 n = self.parent[n as usize];
             }
-            let mut c = self.clusters.patch_parent[mesh.elements[e].patch as usize];
+            let mut c = self.element_cluster[e];
             while c != NONE && !cluster_seen[c as usize] {
                 cluster_seen[c as usize] = true;
                 clusters.push(c);

@@ -296,6 +296,11 @@ pub(super) struct Hierarchy {
     cluster_h: Vec<Octants>,
     /// The leaf node of each element.
     element_node: Vec<u32>,
+    /// Per element, its area and the cluster above its patch (`NONE` for none): what the
+    /// sweeps read of every element, kept apart so that a sweep after an edit does not
+    /// stream the elements themselves (72 bytes each) to find them.
+    element_area: Vec<f32>,
+    element_cluster: Vec<u32>,
     /// Per element, the factor its gathered H is scaled by so that its links' form
     /// factors sum to at most 1 (see [`Hierarchy::conservation_caps`]); empty or stale
     /// (another length) while a refinement round changes the links.
@@ -370,6 +375,8 @@ impl Hierarchy {
             node_h: Vec::new(),
             node_external_range: Vec::new(),
             element_node: Vec::new(),
+            element_area: Vec::new(),
+            element_cluster: Vec::new(),
             leaf_cap: Vec::new(),
             basis: None,
             by_source: None,
@@ -431,6 +438,13 @@ impl Hierarchy {
                 self.element_node[e as usize] = i as u32;
             }
         }
+        self.element_area = mesh.elements.iter().map(|e| e.area).collect();
+        let above = &self.clusters.patch_parent;
+        self.element_cluster = mesh
+            .elements
+            .iter()
+            .map(|e| above[e.patch as usize])
+            .collect();
     }
 
     /// Where a node is: a surface node's centroid or a cluster's centre.
@@ -835,14 +849,15 @@ impl Solver {
             .collect();
         // The area-weighted change and total, as x and y.
         let old = &self.radiosity;
+        let area = &h.element_area;
         let sums = ordered_sum(swept.len(), |e| {
-            let (b, a) = (swept[e], mesh.elements[e].area as f64);
-            DVec2::new(sum3d((b - old[e]).abs()), sum3d(b.abs())) * a
+            let b = swept[e];
+            DVec2::new(sum3d((b - old[e]).abs()), sum3d(b.abs())) * area[e] as f64
         });
         let (changed, total) = (sums.x, sums.y);
         let next = if accelerate {
-            let area = |e: usize| mesh.elements[e].area;
-            h.acceleration.next(&self.radiosity, swept, area)
+            let area = &h.element_area;
+            h.acceleration.next(&self.radiosity, swept, |e| area[e])
         } else {
             swept
         };
