@@ -4,7 +4,7 @@
 //! a leaf receives what all of them gather: `Hierarchy::leaf_irradiance_linear`, then `Hierarchy::capped`), each with where
 //! its source is, what it carries and the oracle's estimate of its error.
 
-use super::table::BF16_NAN;
+use super::link::BF16_NAN;
 use super::{NONE, NodeId};
 use crate::solver::Solver;
 use glam::Vec3;

@@ -236,15 +236,9 @@ fn linear_at(mesh: &Mesh, node: u32, corners: &[Vec3; 3], x: Vec3) -> Vec3 {
     mix(corners, w)
 }
 
-/// What a surface source whose linear B has the values `corners` at its corners sends
-/// along link `l`: that B at the point the receiver sees it best (the link's kernel
-/// centroid), never negative.
-fn sent_from_corners(corners: &[Vec3; 3], l: &StoredLink) -> Vec3 {
-    sent_at(corners, l.transfer.toward())
-}
-
 /// What a surface source whose linear B has the values `corners` at its corners sends from
-/// the point of barycentric weights `w`: never negative.
+/// the point of barycentric weights `w` (a link's kernel centroid, where the receiver sees
+/// it best): never negative.
 fn sent_at(corners: &[Vec3; 3], w: [f32; 3]) -> Vec3 {
     mix(corners, w).max(Vec3::ZERO)
 }
@@ -471,7 +465,7 @@ impl Hierarchy {
     fn source_b(&self, l: &StoredLink, at: Vec3) -> Vec3 {
         match l.source.cluster() {
             Some(c) => self.cluster_send[c].seen_from(at).0,
-            None => sent_from_corners(&self.node_corners[l.source.0 as usize], l),
+            None => sent_at(&self.node_corners[l.source.0 as usize], l.transfer.toward()),
         }
     }
 

@@ -10,8 +10,7 @@
 //! with its receiver and misses, NaN where dropped) and put them back here when they end.
 
 use super::NodeId;
-pub(super) use super::link::BF16_NAN;
-use super::link::{Link, PackedTransfer};
+use super::link::{BF16_NAN, Link, PackedTransfer};
 use rayon::prelude::*;
 use std::borrow::Borrow;
 use std::ops::Range;
