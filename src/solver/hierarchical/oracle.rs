@@ -22,6 +22,7 @@
 //! in parallel) until no link needs it, so one round refines as deep as the current
 //! solution asks; the order of the links does not matter, since they are sorted at the end.
 
+use super::clusters::SAMPLES;
 use super::external;
 use super::table::LinkTable;
 use super::transfer::{self, Sample, Shape};
@@ -66,7 +67,7 @@ pub(super) struct Round {
     waiting: Vec<Link>,
     leaves: Vec<u32>,
     changed: bool,
-    /// How many links the last preview swept (see `Solver::preview`).
+    /// What the last preview cost, in links (see `preview_cost`); zero before the first.
     previewed: usize,
     /// The last sweep's basis (see `Hierarchy::basis`), put back if the round changes
     /// nothing.
@@ -78,6 +79,27 @@ impl Round {
     pub fn links(&self) -> usize {
         self.kept.len() + self.work.len() + self.made.len() + self.waiting.len()
     }
+}
+
+/// What a preview sweep costs, in links: its links, and a sweep's pass over every element
+/// (a pull, the push and the sums), which on Sponza costs as much as about 4 links each
+/// (a preview of a few links over its 445,768 elements took 80 ms, one of 18.7 M links
+/// 0.77 s). Previewing each time this doubles keeps the previews of a round to about two
+/// sweeps of its end, however many elements there are.
+fn preview_cost(links: usize, elements: usize) -> usize {
+    links + 4 * elements
+}
+
+/// Links decided per parallel chunk when a generation's decisions are applied.
+const APPLY_CHUNK: usize = 65_536;
+
+/// What one chunk of a generation's decisions adds to the round (see `View::apply`).
+#[derive(Default)]
+struct Outcome {
+    kept: Vec<Link>,
+    leaves: Vec<u32>,
+    waiting: Vec<Link>,
+    pairs: Vec<(NodeId, NodeId)>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -156,15 +178,8 @@ impl View<'_> {
                     facing: c.facing,
                     area: c.area,
                     area_vector: c.area_vector,
-                    samples: c.samples.map(|p| {
-                        let p = &self.mesh.patches[p as usize];
-                        Sample {
-                            verts: p.verts,
-                            normal: p.normal,
-                            area: p.area,
-                            triangle: p.scene_triangle,
-                        }
-                    }),
+                    // Filled in by `with_samples` where rays are cast.
+                    samples: [Sample::default(); SAMPLES],
                 }
             }
             None => {
@@ -180,6 +195,23 @@ impl View<'_> {
         }
     }
 
+    /// `shape` (of node `id`) with a cluster's sample patches filled in.
+    fn with_samples(&self, shape: &Shape, id: NodeId) -> Shape {
+        let mut shape = *shape;
+        if let (Shape::Cluster { samples, .. }, Some(c)) = (&mut shape, id.cluster()) {
+            *samples = self.h.clusters.nodes[c].samples.map(|p| {
+                let p = &self.mesh.patches[p as usize];
+                Sample {
+                    verts: p.verts,
+                    normal: p.normal,
+                    area: p.area,
+                    triangle: p.scene_triangle,
+                }
+            });
+        }
+        shape
+    }
+
     fn reflectance(&self, id: NodeId) -> f32 {
         match id.cluster() {
             Some(c) => self.h.clusters.nodes[c].reflectance,
@@ -187,14 +219,39 @@ impl View<'_> {
         }
     }
 
-    /// Children of a node, if it has any now.
-    fn children(&self, id: NodeId) -> Option<Vec<NodeId>> {
+    /// Calls `f` with each child of a node, if it has any now.
+    fn for_children(&self, id: NodeId, mut f: impl FnMut(NodeId)) {
         match id.cluster() {
-            Some(c) => Some(self.h.clusters.children_of(c).to_vec()),
-            None => self.mesh.nodes[id.0 as usize]
-                .children
-                .map(|k| k.map(NodeId::surface).to_vec()),
+            Some(c) => self.h.clusters.children_of(c).iter().for_each(|&k| f(k)),
+            None => {
+                if let Some(kids) = self.mesh.nodes[id.0 as usize].children {
+                    kids.into_iter().for_each(|k| f(NodeId::surface(k)));
+                }
+            }
         }
+    }
+
+    /// What the `decisions` of `links` add to a round: links kept, leaves to split with
+    /// the links that wait for them, and the pairs of the next generation.
+    fn apply(&self, links: &[Link], decisions: &[Decision]) -> Outcome {
+        let mut o = Outcome::default();
+        for (l, d) in links.iter().zip(decisions) {
+            match d {
+                Decision::Keep => o.kept.push(*l),
+                Decision::Leaf(n) => {
+                    o.leaves.push(*n);
+                    o.waiting.push(*l);
+                }
+                Decision::Receiver => {
+                    self.for_children(l.receiver, |c| o.pairs.push((c, l.source)))
+                }
+                Decision::Source => self.for_children(l.source, |c| o.pairs.push((l.receiver, c))),
+                Decision::Both => self.for_children(l.receiver, |a| {
+                    self.for_children(l.receiver, |b| o.pairs.push((a, b)))
+                }),
+            }
+        }
+        o
     }
 
     /// Whether a leaf surface node may be split (see [`can_split`]).
@@ -416,6 +473,7 @@ impl View<'_> {
             (s, &ss),
             (self.unsplittable(r), self.unsplittable(s)),
             keep_spread,
+            |shape, id| self.with_samples(shape, id),
         );
         if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
             // A cluster's kernel bound is zero only where nothing can pass.
@@ -669,11 +727,17 @@ impl Solver {
                 round.pairs = Vec::new();
                 round.next_pair = 0;
                 round.work = std::mem::take(&mut round.made);
-                // Before the first solution, a preview each time the links have doubled:
-                // a few dozen over a round, at a cost of about two sweeps of its end.
+                // Before the first solution, a preview each time its cost has doubled: at
+                // most about two sweeps of the round's end in all. None past the link
+                // budget (but the first): the links are then final, and the round's own
+                // sweep follows as soon as its last generation is decided.
                 let cover = round.kept.len() + round.work.len() + round.waiting.len();
-                if h.sweeps == 0 && cover >= 2 * round.previewed.max(1) {
-                    round.previewed = cover;
+                let cost = preview_cost(cover, self.mesh.elements.len());
+                let first = round.previewed == 0;
+                if h.sweeps == 0
+                    && (first || round.threshold.is_finite() && cost >= 2 * round.previewed)
+                {
+                    round.previewed = cost;
                     let links = [&round.kept[..], &round.work, &round.waiting]
                         .into_iter()
                         .flatten()
@@ -699,32 +763,18 @@ impl Solver {
                         .map(move |l| overloaded.unwrap_or_else(|| view.decide(l)))
                 })
                 .collect();
-            for (l, d) in round.work.iter().zip(&decisions) {
-                match d {
-                    Decision::Keep => round.kept.push(*l),
-                    Decision::Leaf(n) => {
-                        round.leaves.push(*n);
-                        round.waiting.push(*l);
-                    }
-                    Decision::Receiver => {
-                        for c in view.children(l.receiver).unwrap_or_default() {
-                            round.pairs.push((c, l.source));
-                        }
-                    }
-                    Decision::Source => {
-                        for c in view.children(l.source).unwrap_or_default() {
-                            round.pairs.push((l.receiver, c));
-                        }
-                    }
-                    Decision::Both => {
-                        let kids = view.children(l.receiver).unwrap_or_default();
-                        for &a in &kids {
-                            for &b in &kids {
-                                round.pairs.push((a, b));
-                            }
-                        }
-                    }
-                }
+            // What each decision adds, in parallel by chunks and appended in link order.
+            let outcomes: Vec<Outcome> = round
+                .work
+                .par_chunks(APPLY_CHUNK)
+                .zip(decisions.par_chunks(APPLY_CHUNK))
+                .map(|(links, decisions)| view.apply(links, decisions))
+                .collect();
+            for mut o in outcomes {
+                round.kept.append(&mut o.kept);
+                round.leaves.append(&mut o.leaves);
+                round.waiting.append(&mut o.waiting);
+                round.pairs.append(&mut o.pairs);
             }
             round.work = Vec::new();
             round.changed |= !round.pairs.is_empty();
@@ -822,16 +872,18 @@ impl Solver {
         {
             return false;
         }
-        let mut mesh = (*self.mesh).clone();
+        // In place unless another holder (the viewer) still has the mesh.
+        let min_size = self.hierarchy_min_size();
+        let mesh = Arc::make_mut(&mut self.mesh);
         let moved = mesh.refine(&marked);
-        mesh.mark_hard_shadows(&self.bvh, &self.external, self.hierarchy_min_size());
+        mesh.mark_hard_shadows(&self.bvh, &self.external, min_size);
         let n = mesh.elements.len();
         self.carry_elements(&moved, n);
         let children = split_children(&moved);
-        let (bvh, external) = (&self.bvh, &self.external);
+        let (mesh, bvh, external) = (&self.mesh, &self.bvh, &self.external);
         let lit: Vec<(Vec3, u32)> = children
             .par_iter()
-            .map(|&c| external_factor(&mesh, bvh, external, c as usize))
+            .map(|&c| external_factor(mesh, bvh, external, c as usize))
             .collect();
         for (&c, (hx, rays)) in children.iter().zip(lit) {
             let c = c as usize;
@@ -842,7 +894,6 @@ impl Solver {
             self.external_in[c] = hx;
             self.stats.rays += rays as u64;
         }
-        self.mesh = Arc::new(mesh);
         h.grow(&self.mesh);
         self.stats.elements = n;
         self.mesh_version += 1;

@@ -40,7 +40,7 @@ use glam::Vec3;
 use std::f32::consts::PI;
 
 /// A patch standing for a cluster in its transfers (see `Cluster::samples`).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Sample {
     pub verts: [Vec3; 3],
     pub normal: Vec3,
@@ -50,6 +50,9 @@ pub(super) struct Sample {
 
 /// What a node looks like to a transfer. Built on the stack for each link the oracle
 /// makes or judges, so a cluster's samples stay inline rather than behind an allocation.
+/// They are filled in only where a transfer casts rays ([`evaluate`]'s `samples`): most
+/// cluster links are judged by their kernel alone, and reading a cluster's sample patches
+/// is four reads scattered over the scene's patches.
 #[derive(Clone, Copy, Debug)]
 #[allow(clippy::large_enum_variant)]
 pub(super) enum Shape {
@@ -176,7 +179,8 @@ fn seed(receiver: NodeId, source: NodeId) -> u64 {
 /// gets no shadow rays and carries nothing (such links took 16 % of Sponza's shadow rays,
 /// and the solve 8 % longer). A link whose ends overlap carries its sampled transfer only
 /// when that is infinite (past the link budget, when the oracle keeps every link); the
-/// oracle splits it otherwise.
+/// oracle splits it otherwise. `samples(shape, node)`: the shape of a cluster with its
+/// sample patches filled in (see [`Shape`]), asked for only where rays are cast.
 pub(super) fn evaluate(
     bvh: &Bvh,
     eps: f32,
@@ -184,6 +188,7 @@ pub(super) fn evaluate(
     (source, s): (NodeId, &Shape),
     final_ends: (bool, bool),
     keep_spread: f32,
+    samples: impl Fn(&Shape, NodeId) -> Shape,
 ) -> Transfer {
     let seed = seed(receiver, source);
     match (r, s) {
@@ -201,7 +206,10 @@ pub(super) fn evaluate(
                 ..
             },
         ) => surface_to_surface(bvh, eps, (rv, *rn, *rt), (sv, *sn, *st), final_ends, seed),
-        _ => with_cluster(bvh, eps, r, s, seed, keep_spread),
+        _ => {
+            let samples = || (samples(r, receiver), samples(s, source));
+            with_cluster(bvh, eps, (r, s), samples, seed, keep_spread)
+        }
     }
 }
 
@@ -413,11 +421,13 @@ fn overlap(r: &Shape, s: &Shape) -> bool {
     (s.centre() - r.centre()).length() <= r.radius() + s.radius()
 }
 
+/// A link with a cluster at either end: judged by its kernel from the ends' bounds, with
+/// `samples()` the two shapes with their sample patches, for the rays.
 fn with_cluster(
     bvh: &Bvh,
     eps: f32,
-    r: &Shape,
-    s: &Shape,
+    (r, s): (&Shape, &Shape),
+    samples: impl FnOnce() -> (Shape, Shape),
     seed: u64,
     keep_spread: f32,
 ) -> Transfer {
@@ -436,7 +446,8 @@ fn with_cluster(
         // nothing), unless it keeps every link (past the link budget), when it carries
         // the sampled transfer.
         return if keep_spread.is_infinite() {
-            near_transfer(bvh, eps, r, s, seed)
+            let (r, s) = samples();
+            near_transfer(bvh, eps, &r, &s, seed)
         } else {
             nothing(f32::INFINITY)
         };
@@ -447,8 +458,9 @@ fn with_cluster(
     if kernel.centre <= 0.0 || !kernel.centre.is_finite() || spread > keep_spread {
         return nothing(spread);
     }
-    let from = sample_points(r, eps, seed, cs);
-    let to = sample_points(s, eps, hash(seed), cr);
+    let (r, s) = samples();
+    let from = sample_points(&r, eps, seed, cs);
+    let to = sample_points(&s, eps, hash(seed), cr);
     let through: [f32; SAMPLES] =
         std::array::from_fn(|i| bvh.transmittance(from[i].0, to[i].0, [from[i].1, to[i].1]));
     let seen = through.iter().sum::<f32>() / SAMPLES as f32;
