@@ -4,6 +4,49 @@
 
 use super::Triangle;
 use glam::Vec3;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// A hash map with [`FastHasher`]: for keys of integers (grid cells, quantised positions)
+/// that no adversary chooses.
+pub type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<FastHasher>>;
+
+/// A fast hash of integer keys, a word at a time (the standard library's SipHash is
+/// several times slower). Lookups only: nothing may depend on a map's iteration order.
+#[derive(Default)]
+pub struct FastHasher(u64);
+
+impl Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        let x = self.0;
+        (x ^ (x >> 31)).wrapping_mul(0x94d0_49bb_1331_11eb)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        // Slices of integers come here as their bytes: a word at a time.
+        let mut words = bytes.chunks_exact(8);
+        for w in &mut words {
+            self.write_u64(u64::from_le_bytes(w.try_into().unwrap_or_default()));
+        }
+        for &b in words.remainder() {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(21) ^ x).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    }
+    fn write_u8(&mut self, x: u8) {
+        self.write_u64(x as u64);
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    fn write_i32(&mut self, x: i32) {
+        self.write_u64(x as u32 as u64);
+    }
+    fn write_i64(&mut self, x: i64) {
+        self.write_u64(x as u64);
+    }
+}
 
 /// A small deterministic hash (the SplitMix64 finaliser; Steele, Lea & Flood, "Fast
 /// splittable pseudorandom number generators", OOPSLA 2014).

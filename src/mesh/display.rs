@@ -8,8 +8,8 @@
 
 use super::{Element, Hanging, Patch};
 use crate::geometry::orthonormal_basis;
+use crate::geometry::sampling::FastMap;
 use glam::Vec3;
-use std::collections::HashMap;
 
 /// Normals within this angle are one smooth surface (the usual 30° crease angle of
 /// modelling tools).
@@ -107,7 +107,7 @@ impl DisplayMesh {
                 if on_cut { patch.region } else { u32::MAX },
             )
         };
-        let mut welded: HashMap<([i64; 3], u32, bool, u32), Vec<u32>> = HashMap::new();
+        let mut welded: FastMap<([i64; 3], u32, bool, u32), Vec<u32>> = FastMap::default();
         let mut keys = Vec::new();
         for e in elements.iter_mut() {
             let patch = &patches[e.patch as usize];

@@ -16,10 +16,9 @@
 //! tolerance of them, through a uniform grid over those ends.
 
 use super::Element;
+use crate::geometry::sampling::FastMap;
 use glam::Vec3;
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
 
 /// A T-vertex: `vertex` lies on the edge from display vertex `edge[0]` to `edge[1]` of a
 /// coarser element that does not use it, at `edge[0] + t·(edge[1] − edge[0])`.
@@ -152,27 +151,7 @@ pub(super) fn find(
 }
 
 /// The grid over the ends of unmatched edges: cell → the vertices within `tol` of it.
-type Grid = HashMap<[i32; 3], Vec<u32>, BuildHasherDefault<CellHasher>>;
-
-/// A fast hash of a cell's three coordinates (the standard library's SipHash is several
-/// times slower, and the keys are not chosen by an adversary).
-#[derive(Default)]
-struct CellHasher(u64);
-
-impl Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        let x = self.0;
-        (x ^ (x >> 31)).wrapping_mul(0x94d0_49bb_1331_11eb)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    }
-    fn write_i32(&mut self, x: i32) {
-        self.0 = (self.0.rotate_left(21) ^ x as u32 as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    }
-}
+type Grid = FastMap<[i32; 3], Vec<u32>>;
 
 /// The edges (element, edge k from corner k to k + 1) that no other element shares, by
 /// their display vertices.
