@@ -85,11 +85,7 @@ pub fn cosine_direction(n: Vec3, basis: (Vec3, Vec3), u: f32, v: f32) -> Vec3 {
 /// Sub-triangle `s` of the `k²` congruent sub-triangles that cut triangle `t` (rows of
 /// 1, 3, 5, … triangles, upright and inverted alternating). Together they tile `t`.
 pub fn stratum(t: &Triangle, k: u32, s: u32) -> Triangle {
-    // Sub-triangle s in row r: rows have 2r+1 triangles (upright at even offsets).
-    let r = (s as f32).sqrt() as u32;
-    let r = if (r + 1) * (r + 1) <= s { r + 1 } else { r };
-    let r = if r * r > s { r - 1 } else { r };
-    let o = s - r * r;
+    let (r, o) = row_of(s);
     let (i, upright) = (o / 2, o.is_multiple_of(2));
     let kf = k as f32;
     let e1 = (t[1] - t[0]) / kf;
@@ -103,6 +99,46 @@ pub fn stratum(t: &Triangle, k: u32, s: u32) -> Triangle {
     } else {
         let p0 = t[0] + e1 * (a + 1.0) + e2 * (b + 1.0);
         [p0, p0 - e1, p0 - e2]
+    }
+}
+
+/// The row r of stratum `s` and its offset in the row: rows have 2r + 1 sub-triangles
+/// (upright at even offsets), so row r starts at r².
+fn row_of(s: u32) -> (u32, u32) {
+    let r = (s as f32).sqrt() as u32;
+    let r = if (r + 1) * (r + 1) <= s { r + 1 } else { r };
+    let r = if r * r > s { r - 1 } else { r };
+    (r, s - r * r)
+}
+
+/// The four strata of the `(2k)²` cut ([`stratum`]) that tile stratum `s` of the `k²` cut:
+/// every lattice line of the coarse cut is one of the fine cut's, so each coarse
+/// sub-triangle is the midpoint subdivision of itself into four fine ones. A point drawn
+/// uniformly in one of the four, chosen at random, is uniform in the coarse stratum; the
+/// fine cut can then reuse it for the one it lies in.
+pub fn sub_strata(k: u32, s: u32) -> [u32; 4] {
+    let (r, o) = row_of(s);
+    let (a, b, upright) = (o / 2, k - 1 - r, o.is_multiple_of(2));
+    // Stratum (a, b) of the fine lattice: row 2k − 1 − b, upright at even offsets.
+    let fine = |a: u32, b: u32, upright: bool| {
+        let row = 2 * k - 1 - b;
+        row * row + 2 * a + u32::from(!upright)
+    };
+    let (a2, b2) = (2 * a, 2 * b);
+    if upright {
+        [
+            fine(a2, b2, true),
+            fine(a2, b2, false),
+            fine(a2 + 1, b2, true),
+            fine(a2, b2 + 1, true),
+        ]
+    } else {
+        [
+            fine(a2 + 1, b2 + 1, false),
+            fine(a2 + 1, b2, false),
+            fine(a2, b2 + 1, false),
+            fine(a2 + 1, b2 + 1, true),
+        ]
     }
 }
 
@@ -168,6 +204,42 @@ mod tests {
             centroid /= (k * k) as f32;
             // The mean of k² stratified uniform points is within ~1/k of the centroid 1/3.
             assert!((centroid - Vec3::new(1.0 / 3.0, 1.0 / 3.0, 0.0)).length() < 0.5 / k as f32);
+        }
+    }
+
+    #[test]
+    fn sub_strata_tile_their_stratum() {
+        // Each fine stratum lies inside its coarse one (its centroid does, and the fine
+        // cut tiles the triangle: `strata_tile_the_triangle`), and the 4k² of them are
+        // each named once: together the four are exactly the coarse stratum.
+        let t = [
+            Vec3::ZERO,
+            Vec3::new(3.0, 0.5, 0.0),
+            Vec3::new(-1.0, 2.0, 0.0),
+        ];
+        let inside = |p: Vec3, tri: &Triangle| {
+            let area = |a: Vec3, b: Vec3, c: Vec3| (b - a).cross(c - a).z;
+            let whole = area(tri[0], tri[1], tri[2]);
+            [
+                area(p, tri[1], tri[2]),
+                area(tri[0], p, tri[2]),
+                area(tri[0], tri[1], p),
+            ]
+            .iter()
+            .all(|w| w / whole > 1e-4)
+        };
+        for k in 1..=8u32 {
+            let mut named = vec![0; (4 * k * k) as usize];
+            for s in 0..k * k {
+                let coarse = stratum(&t, k, s);
+                for f in sub_strata(k, s) {
+                    let fine = stratum(&t, 2 * k, f);
+                    let c = (fine[0] + fine[1] + fine[2]) / 3.0;
+                    assert!(inside(c, &coarse), "k {k} s {s} fine {f}");
+                    named[f as usize] += 1;
+                }
+            }
+            assert!(named.iter().all(|&n| n == 1), "k {k}: {named:?}");
         }
     }
 }

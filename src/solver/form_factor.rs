@@ -28,7 +28,7 @@
 //! collocation-accurate (the mesh must be fine there).
 
 use crate::accel::Bvh;
-use crate::geometry::sampling::{hash, stratified_point, stratum};
+use crate::geometry::sampling::{hash, stratified_point, stratum, sub_strata};
 use crate::mesh::Mesh;
 use glam::Vec3;
 use std::cmp::Ordering;
@@ -412,24 +412,20 @@ pub(in crate::solver) fn strata_visibility(
     k: u32,
     seed: u64,
 ) -> StrataVisibility {
-    let rays = StrataRays::cast(bvh, (x, n), (source, sn), (eps, skip), k, seed);
-    StrataVisibility {
-        fraction: rays.fraction(x, n, source),
-        lo: rays.lo,
-        hi: rays.hi,
-    }
+    StrataRays::cast(bvh, (x, n), (source, sn), (eps, skip), k, seed).visibility(x, n, source)
 }
 
 /// The shadow rays of [`strata_visibility`], before they are weighted.
-struct StrataRays {
+pub(in crate::solver) struct StrataRays {
     k: u32,
     through: [f32; MAX_SAMPLES],
-    lo: f32,
-    hi: f32,
+    /// The least and the greatest transmittance of one ray.
+    pub lo: f32,
+    pub hi: f32,
 }
 
 impl StrataRays {
-    fn cast(
+    pub(in crate::solver) fn cast(
         bvh: &Bvh,
         (x, n): (Vec3, Vec3),
         (source, sn): (&[Vec3; 3], Vec3),
@@ -439,20 +435,102 @@ impl StrataRays {
     ) -> StrataRays {
         let k = k.clamp(1, 16);
         let from = x + n * eps;
-        let mut rays = StrataRays {
+        let mut rays = StrataRays::empty(k);
+        for s in 0..k * k {
+            let y = stratified_point(source, k, s, seed) + sn * eps;
+            rays.record(s, bvh.transmittance(from, y, skip));
+        }
+        rays
+    }
+
+    /// [`StrataRays::cast`] with the points [`StrataRays::refine`] reuses: stratum s's
+    /// point is the point [`stratified_point`] draws in one of its four [`sub_strata`] of
+    /// the 2k cut, chosen at random ([`nested_choice`]), which is uniform in s all the
+    /// same. `k` is at most 8.
+    pub(in crate::solver) fn cast_nested(
+        bvh: &Bvh,
+        (x, n): (Vec3, Vec3),
+        (source, sn): (&[Vec3; 3], Vec3),
+        (eps, skip): (f32, [u32; 2]),
+        k: u32,
+        seed: u64,
+    ) -> StrataRays {
+        let k = k.clamp(1, 8);
+        let from = x + n * eps;
+        let mut rays = StrataRays::empty(k);
+        for s in 0..k * k {
+            let fine = sub_strata(k, s)[nested_choice(seed, s)];
+            let y = stratified_point(source, 2 * k, fine, seed) + sn * eps;
+            rays.record(s, bvh.transmittance(from, y, skip));
+        }
+        rays
+    }
+
+    /// The rays of the (2k)² cut from the rays of [`StrataRays::cast_nested`] with the
+    /// same arguments: each of its rays is the fine ray of the sub-stratum its point was
+    /// drawn in, and the other three sub-strata get their own points. Every fine stratum
+    /// then holds one uniform point, as [`StrataRays::cast`] draws them, so the estimate's
+    /// expectation is that of a fresh (2k)² cut; 3k² rays are cast instead of 4k².
+    pub(in crate::solver) fn refine(
+        &self,
+        bvh: &Bvh,
+        (x, n): (Vec3, Vec3),
+        (source, sn): (&[Vec3; 3], Vec3),
+        (eps, skip): (f32, [u32; 2]),
+        seed: u64,
+    ) -> StrataRays {
+        let k = self.k;
+        let from = x + n * eps;
+        let mut rays = StrataRays::empty(2 * k);
+        for s in 0..k * k {
+            let subs = sub_strata(k, s);
+            let reused = subs[nested_choice(seed, s)];
+            for fine in subs {
+                let t = if fine == reused {
+                    self.through[s as usize]
+                } else {
+                    let y = stratified_point(source, 2 * k, fine, seed) + sn * eps;
+                    bvh.transmittance(from, y, skip)
+                };
+                rays.record(fine, t);
+            }
+        }
+        rays
+    }
+
+    /// Rays cast: k² for [`StrataRays::cast`] and [`StrataRays::cast_nested`], the
+    /// three quarters new for [`StrataRays::refine`].
+    pub(in crate::solver) fn strata(&self) -> u32 {
+        self.k * self.k
+    }
+
+    fn empty(k: u32) -> StrataRays {
+        StrataRays {
             k,
             through: [0.0; MAX_SAMPLES],
             lo: f32::INFINITY,
             hi: f32::NEG_INFINITY,
-        };
-        for s in 0..k * k {
-            let y = stratified_point(source, k, s, seed) + sn * eps;
-            let t = bvh.transmittance(from, y, skip);
-            rays.through[s as usize] = t;
-            rays.lo = rays.lo.min(t);
-            rays.hi = rays.hi.max(t);
         }
-        rays
+    }
+
+    fn record(&mut self, s: u32, t: f32) {
+        self.through[s as usize] = t;
+        self.lo = self.lo.min(t);
+        self.hi = self.hi.max(t);
+    }
+
+    /// What the rays found from `x` with normal `n` (see [`strata_visibility`]).
+    pub(in crate::solver) fn visibility(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        source: &[Vec3; 3],
+    ) -> StrataVisibility {
+        StrataVisibility {
+            fraction: self.fraction(x, n, source),
+            lo: self.lo,
+            hi: self.hi,
+        }
     }
 
     /// Σ F_s T_s / Σ F_s (the common transmittance where every ray agrees).
@@ -474,6 +552,12 @@ impl StrataRays {
             self.through[..strata].iter().sum::<f32>() / strata as f32
         }
     }
+}
+
+/// Which of stratum s's four [`sub_strata`] its nested point is drawn in: uniform, and
+/// independent of where in it (a different stream of the seed than `stratified_point`'s).
+fn nested_choice(seed: u64, s: u32) -> usize {
+    (hash(seed ^ 0x6e65_7374 ^ (s as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) >> 62) as usize
 }
 
 /// The most strata [`element_to_patch`] samples (`max_rays` is capped to this).
@@ -597,5 +681,102 @@ mod tests {
         }
         assert!(tested > 5000, "only {tested} triangles tested");
         assert!(worst <= 0.6, "error {worst} of the bound");
+    }
+
+    #[test]
+    fn refined_strata_reuse_the_coarse_rays_and_keep_the_expectation() {
+        // A point under a large source triangle, with an opaque triangle halfway between
+        // whose shadow on the source lies inside it. The claim of `StrataRays::refine`:
+        // its estimate has the expectation of a fresh 4 × 4 cut. Both means, over 3000
+        // seeds each, must agree within 4 standard errors of their difference (a false
+        // failure once in ~16,000 runs). Both also stand near the exact visible form
+        // factor, F(source) − F(occluder) (the shadow lies inside the source), within
+        // what weighting each stratum by its own form factor misses of the kernel's
+        // variation inside it: the strata are 0.75 wide at a distance of 1 to 1.7, where
+        // cos²θ / r² changes by up to about 30 % across one, so the shadowed part may be
+        // misjudged by that fraction (8.6 % measured).
+        let source = [
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(2.0, -1.0, 1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+        ];
+        let occluder = [
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::new(0.4, 0.0, 0.5),
+            Vec3::new(0.0, 0.4, 0.5),
+        ];
+        let bvh = Bvh::build(&[source, occluder], &[]);
+        let (x, n, sn) = (Vec3::ZERO, Vec3::Z, -Vec3::Z);
+        let ray = (1e-4, [u32::MAX, 0]);
+        let draws = 3000u64;
+        let (mut fresh, mut reused) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
+        for d in 0..draws {
+            let seed = hash(d);
+            let coarse = StrataRays::cast_nested(&bvh, (x, n), (&source, sn), ray, 2, seed);
+            let refined = coarse.refine(&bvh, (x, n), (&source, sn), ray, seed);
+            // The refined cut holds the coarse rays: its range covers theirs.
+            assert!(refined.lo <= coarse.lo && refined.hi >= coarse.hi);
+            let a = StrataRays::cast(&bvh, (x, n), (&source, sn), ray, 4, hash(seed))
+                .fraction(x, n, &source) as f64;
+            let b = refined.fraction(x, n, &source) as f64;
+            fresh = (fresh.0 + a, fresh.1 + a * a);
+            reused = (reused.0 + b, reused.1 + b * b);
+        }
+        let stats = |(s, s2): (f64, f64)| {
+            let mean = s / draws as f64;
+            (
+                mean,
+                (s2 / draws as f64 - mean * mean).max(0.0) / draws as f64,
+            )
+        };
+        let ((ma, va), (mb, vb)) = (stats(fresh), stats(reused));
+        assert!(
+            (ma - mb).abs() <= 4.0 * (va + vb).sqrt(),
+            "fresh {ma}, reused {mb}"
+        );
+        let f = point_to_polygon(x, n, &source) as f64;
+        let exact = 1.0 - point_to_polygon(x, n, &occluder) as f64 / f;
+        assert!(exact < 0.9, "the occluder hides a visible part: {exact}");
+        for m in [ma, mb] {
+            assert!(
+                (m - exact).abs() <= 0.3 * (1.0 - exact),
+                "{m} against {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn refined_strata_put_each_ray_in_its_own_fine_stratum() {
+        // An opaque triangle whose shadow on the source, seen from the point, is exactly
+        // one fine stratum X (the middle of a coarse one): every ray that ends in X is
+        // blocked and every other one is not, so the refined cut's fraction must be
+        // 1 − F_X / Σ F_s for every seed (to f32 rounding). A ray counted for the wrong
+        // fine stratum, or a point drawn outside its own, breaks this for most seeds.
+        let source = [
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(2.0, -1.0, 1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+        ];
+        let (x, n, sn) = (Vec3::ZERO, Vec3::Z, -Vec3::Z);
+        for (coarse_stratum, child) in [(0, 1), (1, 0), (2, 3), (3, 2)] {
+            let hidden = sub_strata(2, coarse_stratum)[child];
+            let occluder = stratum(&source, 4, hidden).map(|v| v * 0.5);
+            let bvh = Bvh::build(&[source, occluder], &[]);
+            let ray = (1e-7, [u32::MAX, 0]);
+            let weights: Vec<f32> = (0..16)
+                .map(|s| form_factor_weight(x, n, &stratum(&source, 4, s)))
+                .collect();
+            let expected = 1.0 - weights[hidden as usize] / weights.iter().sum::<f32>();
+            for d in 0..200u64 {
+                let seed = hash(d);
+                let coarse = StrataRays::cast_nested(&bvh, (x, n), (&source, sn), ray, 2, seed);
+                let refined = coarse.refine(&bvh, (x, n), (&source, sn), ray, seed);
+                let got = refined.fraction(x, n, &source);
+                assert!(
+                    (got - expected).abs() <= 1e-5,
+                    "X = {hidden}, seed {d}: {got} against {expected}"
+                );
+            }
+        }
     }
 }

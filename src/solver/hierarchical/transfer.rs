@@ -10,7 +10,7 @@
 //!   front) at the three points of the degree-2 triangle rule (barycentric (2/3, 1/6, 1/6)
 //!   and permutations; Strang & Fix), each times the visible fraction of the source seen
 //!   from it (shadow rays to stratified points of the source, each weighted by its
-//!   stratum's form factor: `form_factor::strata_visibility`). The points lie halfway
+//!   stratum's form factor: `form_factor::StrataRays`). The points lie halfway
 //!   between the centroid and the corners; the receiver gets the linear function through them, and the link's `spread`
 //!   is what that function may miss: how far the kernel at the centroid bends away from it,
 //!   plus the form factor where the shadow rays disagree (a shadow boundary crosses it).
@@ -35,7 +35,7 @@ use super::clusters::{Facing, SAMPLES};
 use crate::accel::{Bvh, Shaft};
 use crate::geometry::sampling::{hash, stratified_point, stratum};
 use crate::solver::form_factor::point_to_polygon;
-use crate::solver::form_factor::{form_factor_weight, strata_visibility};
+use crate::solver::form_factor::{StrataRays, form_factor_weight};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -172,7 +172,8 @@ fn seed(receiver: NodeId, source: NodeId) -> u64 {
 
 /// The transfer from `source` to `receiver`. `final_ends`: whether the receiver and the
 /// source are leaves that cannot be split further. When both are, a partly visible link
-/// is sampled with 16 strata per receiver point instead of 4; a final source is constant
+/// is sampled with 16 strata per receiver point instead of 4 (12 new rays: the 4 of the
+/// coarse cut are reused, see `StrataRays::refine`); a final source is constant
 /// (see `Hierarchy::pull`), so where its light comes from is not needed. `keep_spread`:
 /// the largest spread the oracle could keep this link with. A cluster link whose
 /// unoccluded kernel range alone exceeds it will be split whatever its visibility, so it
@@ -246,44 +247,51 @@ fn surface_to_surface(
     let mut rays = 0u32;
     let (mut visible, mut vlo, mut vhi) = ([1.0f32; 3], 1.0f32, 1.0f32);
     if proofs.iter().any(|p| p.is_some_and(|p| p != Shaft::Clear)) {
-        // k² shadow rays from each unproven receiver point to stratified points of the
-        // source: the kernel-weighted visibility per point, and the range over all rays.
-        let sample = |k: u32, seed: u64| {
-            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            let mut n = 0;
-            let v = std::array::from_fn(|j| {
-                let proven = match proofs[j] {
-                    None => return 1.0,
-                    Some(Shaft::Clear) => Some(1.0),
-                    Some(Shaft::Blocked) => Some(0.0),
-                    Some(Shaft::Unknown) => None,
+        // 2 × 2 shadow rays from each unproven receiver point to stratified points of the
+        // source; where the rays of a final link disagree, 4 × 4 that reuse them (a fifth
+        // fewer rays than 16 fresh ones, the same expectation; and a quarter less bias
+        // from choosing the finer cut by what the rays found, since the rays that chose it
+        // count for a quarter of the result rather than nothing).
+        let points = |j: usize| ((q[j], rn), (sv, sn), (eps, skip));
+        let seeds = [0, 1, 2].map(|j| hash(seed ^ j as u64));
+        let mut cast: [Option<StrataRays>; 3] = std::array::from_fn(|j| {
+            (proofs[j] == Some(Shaft::Unknown)).then(|| {
+                let (at, source, ray) = points(j);
+                StrataRays::cast_nested(bvh, at, source, ray, 2, seeds[j])
+            })
+        });
+        // The least and the greatest transmittance of one ray over the points.
+        let range = |cast: &[Option<StrataRays>; 3]| {
+            let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+            for j in 0..3 {
+                let (lo, hi) = match (proofs[j], &cast[j]) {
+                    (None, _) => continue,
+                    (_, Some(rays)) => (rays.lo, rays.hi),
+                    (Some(Shaft::Blocked), _) => (0.0, 0.0),
+                    _ => (1.0, 1.0),
                 };
-                if let Some(v) = proven {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                    return v;
-                }
-                n += k * k;
-                let seen = strata_visibility(
-                    bvh,
-                    (q[j], rn),
-                    (sv, sn),
-                    (eps, skip),
-                    k,
-                    hash(seed ^ j as u64),
-                );
-                lo = lo.min(seen.lo);
-                hi = hi.max(seen.hi);
-                seen.fraction
-            });
-            (v, lo, hi, n)
+                range = (range.0.min(lo), range.1.max(hi));
+            }
+            range
         };
-        let (v, lo, hi, n) = sample(2, seed);
-        (visible, vlo, vhi, rays) = (v, lo, hi, n);
+        (vlo, vhi) = range(&cast);
+        rays = cast.iter().flatten().map(StrataRays::strata).sum();
         if fine && vhi > vlo {
-            let (v, lo, hi, n) = sample(4, hash(seed));
-            (visible, vlo, vhi, rays) = (v, lo, hi, rays + n);
+            for (j, c) in cast.iter_mut().enumerate() {
+                if let Some(coarse) = c {
+                    let (at, source, ray) = points(j);
+                    let refined = coarse.refine(bvh, at, source, ray, seeds[j]);
+                    rays += refined.strata() - coarse.strata();
+                    *c = Some(refined);
+                }
+            }
+            (vlo, vhi) = range(&cast);
         }
+        visible = std::array::from_fn(|j| match (proofs[j], &cast[j]) {
+            (_, Some(r)) => r.visibility(q[j], rn, sv).fraction,
+            (Some(Shaft::Blocked), _) => 0.0,
+            _ => 1.0,
+        });
     }
     let values: [f32; 3] = std::array::from_fn(|k| f[k] * visible[k]);
     let mean = (values[0] + values[1] + values[2]) / 3.0;
