@@ -10,6 +10,7 @@ use super::{Element, Hanging, Patch};
 use crate::geometry::orthonormal_basis;
 use crate::geometry::sampling::FastMap;
 use glam::Vec3;
+use std::collections::hash_map::Entry;
 
 /// Normals within this angle are one smooth surface (the usual 30° crease angle of
 /// modelling tools).
@@ -107,29 +108,46 @@ impl DisplayMesh {
                 if on_cut { patch.region } else { u32::MAX },
             )
         };
-        let mut welded: FastMap<([i64; 3], u32, bool, u32), Vec<u32>> = FastMap::default();
-        let mut keys = Vec::new();
+        // Key → the first vertex made for it. Other vertices of the same key (other
+        // normals) follow it in a chain through `next`, in the order they were made.
+        let mut welded: FastMap<([i64; 3], u32, bool, u32), u32> =
+            FastMap::with_capacity_and_hasher(elements.len(), Default::default());
+        let mut next: Vec<u32> = Vec::with_capacity(elements.len());
+        let mut keys = Vec::with_capacity(elements.len());
         for e in elements.iter_mut() {
             let patch = &patches[e.patch as usize];
             for k in 0..3 {
                 let p = e.verts[k];
                 let key = key(p, patch);
-                let slots = welded.entry(key).or_default();
-                let found = slots
-                    .iter()
-                    .copied()
-                    .find(|&v| mesh.normals[v as usize].dot(e.normal) >= cos_smooth);
-                e.corners[k] = match found {
-                    Some(v) => v,
-                    None => {
-                        let v = mesh.positions.len() as u32;
-                        mesh.positions.push(p);
-                        mesh.normals.push(e.normal);
-                        keys.push(key);
-                        slots.push(v);
-                        v
+                let new = mesh.positions.len() as u32;
+                let found = match welded.entry(key) {
+                    Entry::Vacant(slot) => {
+                        slot.insert(new);
+                        None
+                    }
+                    Entry::Occupied(slot) => {
+                        let mut v = *slot.get();
+                        loop {
+                            if mesh.normals[v as usize].dot(e.normal) >= cos_smooth {
+                                break Some(v);
+                            }
+                            match next[v as usize] {
+                                u32::MAX => {
+                                    next[v as usize] = new;
+                                    break None;
+                                }
+                                w => v = w,
+                            }
+                        }
                     }
                 };
+                e.corners[k] = found.unwrap_or_else(|| {
+                    mesh.positions.push(p);
+                    mesh.normals.push(e.normal);
+                    keys.push(key);
+                    next.push(u32::MAX);
+                    new
+                });
             }
         }
         // T-vertices: a vertex inside an element's edge that the element would have

@@ -167,7 +167,7 @@ fn unmatched_edges(elements: &[Element]) -> Vec<(u32, u8)> {
             }
         }
     }
-    keys.sort_unstable();
+    keys.par_sort_unstable();
     let mut unmatched = Vec::new();
     let mut i = 0;
     while i < keys.len() {
