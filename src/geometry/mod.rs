@@ -31,13 +31,17 @@ pub fn triangle_normal(t: &Triangle) -> Vec3 {
 }
 
 /// Midpoint subdivision children of a triangle, same orientation: three corner triangles
-/// and the middle one.
+/// and the middle one (at [`MIDDLE_CHILD`]).
 pub fn subdivide(v: &Triangle) -> [Triangle; 4] {
     let ab = (v[0] + v[1]) * 0.5;
     let bc = (v[1] + v[2]) * 0.5;
     let ca = (v[2] + v[0]) * 0.5;
     [[v[0], ab, ca], [ab, v[1], bc], [ca, bc, v[2]], [ab, bc, ca]]
 }
+
+/// The index of [`subdivide`]'s middle child, whose centroid is its parent's:
+/// (a+b)/2 + (b+c)/2 + (c+a)/2 = a + b + c.
+pub const MIDDLE_CHILD: usize = 3;
 
 /// An orthonormal basis (t, b) perpendicular to unit `n` (Duff et al., "Building an
 /// orthonormal basis, revisited", JCGT 2017).
@@ -156,6 +160,13 @@ mod tests {
         assert!((sum - triangle_area(&t)).abs() < 1e-6);
         for k in &kids {
             assert!(triangle_normal(k).dot(Vec3::Z) > 0.999);
+        }
+        // The middle child shares its parent's centroid (to f32 rounding of coordinates
+        // of size 2), and no corner child does.
+        let centroid = |t: &Triangle| (t[0] + t[1] + t[2]) / 3.0;
+        for (i, k) in kids.iter().enumerate() {
+            let same = (centroid(k) - centroid(&t)).length() < 1e-6;
+            assert_eq!(same, i == MIDDLE_CHILD, "child {i}");
         }
     }
 }

@@ -28,6 +28,7 @@ use super::table::LinkTable;
 use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
+use crate::geometry::MIDDLE_CHILD;
 use crate::mesh::Mesh;
 use crate::solver::refine::split_children;
 use crate::solver::types::{MAX_LINK_BUDGET, Stop};
@@ -879,7 +880,12 @@ impl Solver {
         mesh.mark_hard_shadows(&self.bvh, &self.external, min_size);
         let n = mesh.elements.len();
         self.carry_elements(&moved, n);
-        let children = split_children(&moved);
+        // A middle child has its parent's centroid and normal, so the external
+        // irradiance carried from its parent is its own: only corner children cast rays.
+        let children: Vec<u32> = split_children(&moved)
+            .chunks_exact(4)
+            .flat_map(|kids| (0..4).filter(|&k| k != MIDDLE_CHILD).map(move |k| kids[k]))
+            .collect();
         let (mesh, bvh, external) = (&self.mesh, &self.bvh, &self.external);
         let lit: Vec<(Vec3, u32)> = children
             .par_iter()
