@@ -425,6 +425,9 @@ pub(in crate::solver) struct StrataRays {
 }
 
 impl StrataRays {
+    /// One shadow ray from `x` (lifted by `eps` along `n`) to a jittered point of each of
+    /// the k² strata of `source` ([`stratified_point`], lifted off it along `sn`); `k` is
+    /// at most 16.
     pub(in crate::solver) fn cast(
         bvh: &Bvh,
         (x, n): (Vec3, Vec3),
@@ -434,13 +437,9 @@ impl StrataRays {
         seed: u64,
     ) -> StrataRays {
         let k = k.clamp(1, 16);
-        let from = x + n * eps;
-        let mut rays = StrataRays::empty(k);
-        for s in 0..k * k {
-            let y = stratified_point(source, k, s, seed) + sn * eps;
-            rays.record(s, bvh.transmittance(from, y, skip));
-        }
-        rays
+        StrataRays::cast_each(bvh, x + n * eps, skip, k, |s| {
+            stratified_point(source, k, s, seed) + sn * eps
+        })
     }
 
     /// [`StrataRays::cast`] with the points [`StrataRays::refine`] reuses: stratum s's
@@ -456,12 +455,23 @@ impl StrataRays {
         seed: u64,
     ) -> StrataRays {
         let k = k.clamp(1, 8);
-        let from = x + n * eps;
+        StrataRays::cast_each(bvh, x + n * eps, skip, k, |s| {
+            let fine = sub_strata(k, s)[nested_choice(seed, s)];
+            stratified_point(source, 2 * k, fine, seed) + sn * eps
+        })
+    }
+
+    /// One ray from `from` to `point(s)` for each stratum s of the k² cut.
+    fn cast_each(
+        bvh: &Bvh,
+        from: Vec3,
+        skip: [u32; 2],
+        k: u32,
+        point: impl Fn(u32) -> Vec3,
+    ) -> StrataRays {
         let mut rays = StrataRays::empty(k);
         for s in 0..k * k {
-            let fine = sub_strata(k, s)[nested_choice(seed, s)];
-            let y = stratified_point(source, 2 * k, fine, seed) + sn * eps;
-            rays.record(s, bvh.transmittance(from, y, skip));
+            rays.record(s, bvh.transmittance(from, point(s), skip));
         }
         rays
     }
@@ -683,6 +693,16 @@ mod tests {
         assert!(worst <= 0.6, "error {worst} of the bound");
     }
 
+    /// A source triangle 1 above the origin, facing down, 3 wide: large enough that its
+    /// strata see the kernel vary.
+    fn overhead_source() -> [Vec3; 3] {
+        [
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(2.0, -1.0, 1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+        ]
+    }
+
     #[test]
     fn refined_strata_reuse_the_coarse_rays_and_keep_the_expectation() {
         // A point under a large source triangle, with an opaque triangle halfway between
@@ -695,11 +715,7 @@ mod tests {
         // variation inside it: the strata are 0.75 wide at a distance of 1 to 1.7, where
         // cos²θ / r² changes by up to about 30 % across one, so the shadowed part may be
         // misjudged by that fraction (8.6 % measured).
-        let source = [
-            Vec3::new(-1.0, -1.0, 1.0),
-            Vec3::new(2.0, -1.0, 1.0),
-            Vec3::new(-1.0, 2.0, 1.0),
-        ];
+        let source = overhead_source();
         let occluder = [
             Vec3::new(0.0, 0.0, 0.5),
             Vec3::new(0.4, 0.0, 0.5),
@@ -752,11 +768,7 @@ mod tests {
         // blocked and every other one is not, so the refined cut's fraction must be
         // 1 − F_X / Σ F_s for every seed (to f32 rounding). A ray counted for the wrong
         // fine stratum, or a point drawn outside its own, breaks this for most seeds.
-        let source = [
-            Vec3::new(-1.0, -1.0, 1.0),
-            Vec3::new(2.0, -1.0, 1.0),
-            Vec3::new(-1.0, 2.0, 1.0),
-        ];
+        let source = overhead_source();
         let (x, n, sn) = (Vec3::ZERO, Vec3::Z, -Vec3::Z);
         for (coarse_stratum, child) in [(0, 1), (1, 0), (2, 3), (3, 2)] {
             let hidden = sub_strata(2, coarse_stratum)[child];
