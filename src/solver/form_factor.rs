@@ -508,8 +508,8 @@ impl StrataRays {
         rays
     }
 
-    /// Rays cast: k² for [`StrataRays::cast`] and [`StrataRays::cast_nested`], the
-    /// three quarters new for [`StrataRays::refine`].
+    /// The strata of the cut, k², one ray each. For [`StrataRays::refine`]'s cut, a
+    /// quarter of them are the coarse cut's rays: it cast only the difference.
     pub(in crate::solver) fn strata(&self) -> u32 {
         self.k * self.k
     }
