@@ -89,7 +89,8 @@ pub struct SolveOptions {
     #[arg(long, default_value_t = AdaptiveSettings::default().threshold)]
     pub adaptive_threshold: f32,
     /// Smallest element adaptive subdivision or the hierarchy may make, metres (default:
-    /// an eighth of the starting element size).
+    /// an eighth of the starting element size); the hierarchy goes to a quarter of it
+    /// where a leaf touches the surface it receives from (a contact).
     #[arg(long)]
     pub min_element_size: Option<f64>,
     /// Hierarchical: the refinement oracle's relative threshold ε (a link is refined when

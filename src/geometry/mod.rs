@@ -83,6 +83,20 @@ impl Frame {
     }
 }
 
+/// The shortest altitude of triangle `t`: twice its area over its longest edge (how wide
+/// it is across; a sliver's is far below `sqrt(2 · area)`).
+pub fn shortest_altitude(t: &Triangle) -> f32 {
+    let twice_area = (t[1] - t[0]).cross(t[2] - t[0]).length();
+    let longest = (0..3)
+        .map(|k| t[k].distance(t[(k + 1) % 3]))
+        .fold(0.0, f32::max);
+    if longest > 0.0 {
+        twice_area / longest
+    } else {
+        0.0
+    }
+}
+
 /// Closest point on triangle `t` to `p` (Ericson, Real-Time Collision Detection, §5.1.5),
 /// with its barycentric coordinates.
 pub fn closest_point_on_triangle(p: Vec3, t: &Triangle) -> (Vec3, [f32; 3]) {

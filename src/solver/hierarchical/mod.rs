@@ -281,6 +281,9 @@ pub(super) struct Hierarchy {
     /// Per node, the range of the external light's irradiance over it (see [`external`]),
     /// NaN until a refinement round asks for it.
     node_external_range: Vec<f32>,
+    /// Leaves that may not split below the minimum size for a contact: their split would
+    /// have made some element too narrow for balance (see `Solver::split_leaves`).
+    ungraded: std::collections::HashSet<u32>,
     cluster_b: Vec<Vec3>,
     /// What each cluster's surfaces send by direction: see [`Facing`].
     cluster_facing: Vec<Facing>,
@@ -368,6 +371,7 @@ impl Hierarchy {
             node_moments: Vec::new(),
             node_h: Vec::new(),
             node_external_range: Vec::new(),
+            ungraded: Default::default(),
             element_node: Vec::new(),
             element_area: Vec::new(),
             element_cluster: Vec::new(),
