@@ -202,8 +202,8 @@ fn penumbra_scene_matches_the_closed_form_in_umbra_and_penumbra() {
 
 #[test]
 fn cornell_box_matches_the_path_traced_reference_at_every_class_of_point() {
+    use radiosity::reference::Surfaces;
     use radiosity::reference::probes::{ProbeCounts, pick};
-    use radiosity::reference::{ReferenceSettings, Surfaces, estimate};
     let scene = builtin::cornell_box();
     let surfaces = Surfaces::new(&scene);
     let bvh = radiosity::accel::Bvh::build(&surfaces.triangles, &surfaces.transmittance);
@@ -216,18 +216,7 @@ fn cornell_box_matches_the_path_traced_reference_at_every_class_of_point() {
     };
     let probes = pick(&surfaces, &bvh, &counts, 7);
     let points: Vec<(DVec3, DVec3)> = probes.iter().map(|p| (p.point, p.normal)).collect();
-    let settings = ReferenceSettings {
-        rel_error: 0.01,
-        ..Default::default()
-    };
-    let truth = estimate(
-        &scene,
-        &points,
-        &settings,
-        &|_, _, _| {},
-        radiosity::cancel::never(),
-    )
-    .unwrap();
+    let truth = common::path_traced(&scene, &points, 0.01);
     let got = gathered(&scene, &points);
     let mean = truth.iter().map(|t| t.value).sum::<DVec3>() / truth.len() as f64;
     let floor = mean * 0.02;

@@ -432,7 +432,6 @@ fn results_do_not_depend_on_the_thread_count() {
 fn the_foot_of_a_block_matches_the_path_traced_reference() {
     use radiosity::mesh::{MeshSettings, Reconstruction};
     use radiosity::pipeline::{Prepared, probe_values};
-    use radiosity::reference::{ReferenceSettings, estimate};
     // The Cornell box with the command line's defaults, and points at the foot of the short
     // block's front face (it faces the open front, so all its light is interreflected, and
     // it goes from 0.031 at 0.1 mm above the floor to 0.056 at 4 mm) and on the floor just
@@ -454,17 +453,7 @@ fn the_foot_of_a_block_matches_the_path_traced_reference() {
             points.push((foot + out * d + DVec3::Y * 1e-6, DVec3::Y));
         }
     }
-    let truth = estimate(
-        &scene,
-        &points,
-        &ReferenceSettings {
-            rel_error: 0.01,
-            ..Default::default()
-        },
-        &|_, _, _| {},
-        radiosity::cancel::never(),
-    )
-    .unwrap();
+    let truth = common::path_traced(&scene, &points, 0.01);
     let got = probe_values(
         solver.mesh(),
         &solver.radiosity(),

@@ -21,18 +21,7 @@ use radiosity::scene::{Scene, builtin};
 use std::f64::consts::PI;
 
 fn run(scene: &Scene, points: &[(DVec3, DVec3)], rel_error: f64) -> Vec<Estimate> {
-    let settings = ReferenceSettings {
-        rel_error,
-        ..Default::default()
-    };
-    estimate(
-        scene,
-        points,
-        &settings,
-        &|_, _, _| {},
-        radiosity::cancel::never(),
-    )
-    .unwrap()
+    common::path_traced(scene, points, rel_error)
 }
 
 /// Asserts |value − truth| ≤ 3σ (every channel) at every point; returns the largest

@@ -619,7 +619,6 @@ fn render_final_gather_agrees_with_the_rasterised_picture_and_the_reference() {
 #[test]
 fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
     use glam::DVec3;
-    use radiosity::reference::{ReferenceSettings, estimate};
     use radiosity::view::gathered::GatheredView;
     let scene = radiosity::scene::builtin::cornell_box();
     let options = radiosity::cli::SolveOptions::default();
@@ -653,17 +652,7 @@ fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
         }
     }
     assert!(points.len() > 60, "{} points", points.len());
-    let truth = estimate(
-        &scene,
-        &points,
-        &ReferenceSettings {
-            rel_error: 0.01,
-            ..Default::default()
-        },
-        &|_, _, _| {},
-        radiosity::cancel::never(),
-    )
-    .unwrap();
+    let truth = common::path_traced(&scene, &points, 0.01);
     let mean = truth.iter().map(|t| t.value).sum::<DVec3>() / truth.len() as f64;
     for ((g, t), (p, _)) in values.iter().zip(&truth).zip(&points) {
         let scale = t.value.max(mean * 0.02).length();

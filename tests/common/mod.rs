@@ -285,3 +285,26 @@ pub fn scenes_at(dir: &Path, ci: bool) -> Option<PathBuf> {
         None
     }
 }
+
+/// The built-in path-traced reference at `points` (world position, normal), to `rel_error`
+/// standard error relative to max(B, 2 % of the mean B), with the default seed: the
+/// unbiased truth the solvers are held to.
+#[allow(dead_code)]
+pub fn path_traced(
+    scene: &Scene,
+    points: &[(DVec3, DVec3)],
+    rel_error: f64,
+) -> Vec<radiosity::reference::Estimate> {
+    let settings = radiosity::reference::ReferenceSettings {
+        rel_error,
+        ..Default::default()
+    };
+    radiosity::reference::estimate(
+        scene,
+        points,
+        &settings,
+        &|_, _, _| {},
+        radiosity::cancel::never(),
+    )
+    .unwrap()
+}
