@@ -82,7 +82,8 @@ pub(super) struct Round {
 }
 
 impl Round {
-    /// The links the round holds: kept, to decide, made in this generation, and waiting.
+    /// The links the round holds: kept, stuck, to decide, made in this generation, and
+    /// waiting.
     pub fn links(&self) -> usize {
         self.kept.len() + self.stuck.len() + self.work.len() + self.made.len() + self.waiting.len()
     }
@@ -266,23 +267,22 @@ impl View<'_> {
         o
     }
 
-    /// Whether surface nodes `r` and `s` touch or nearly touch: a corner of either lies
-    /// within [`CONTACT_GAP`] of `r`'s size (as `sqrt(2 · area)`) of the other.
-    fn in_contact(&self, r: NodeId, s: NodeId) -> bool {
+    /// Whether surface nodes `r` and `s` (with their [`View::bounds`] `rb` and `sb`) touch
+    /// or nearly touch: a corner of either lies within [`CONTACT_GAP`] of `r`'s size (as
+    /// `sqrt(2 · area)`) of the other.
+    fn in_contact(&self, (r, rb): (NodeId, &Bounds), (s, sb): (NodeId, &Bounds)) -> bool {
         if r.cluster().is_some() || s.cluster().is_some() {
+            return false;
+        }
+        let gap = CONTACT_GAP * (2.0 * rb.area).sqrt();
+        // Bounding spheres further apart than the gap: no corner can be near (most links).
+        if rb.centre.distance(sb.centre) > rb.radius + sb.radius + gap {
             return false;
         }
         let (rv, sv) = (
             &self.mesh.nodes[r.0 as usize].verts,
             &self.mesh.nodes[s.0 as usize].verts,
         );
-        let gap = CONTACT_GAP * (2.0 * self.h.node_area[r.0 as usize]).sqrt();
-        // Bounding spheres further apart than the gap: no corner can be near (most links).
-        let (cr, cs) = (transfer::centroid(rv), transfer::centroid(sv));
-        let spheres = transfer::radius(rv) + transfer::radius(sv);
-        if cr.distance(cs) > spheres + gap {
-            return false;
-        }
         let near = |p: &Vec3, t: &[Vec3; 3]| closest_point_on_triangle(*p, t).0.distance(*p) < gap;
         rv.iter().any(|p| near(p, sv)) || sv.iter().any(|p| near(p, rv))
     }
@@ -399,7 +399,7 @@ impl View<'_> {
         // the error (which end splits depends on the threshold too, and a link must not
         // refine further at a smaller error); the contact test runs only where it decides.
         if kernel + variation > threshold / CONTACT_STRICTNESS
-            && self.in_contact(l.receiver, l.source)
+            && self.in_contact((l.receiver, r), (l.source, s))
         {
             threshold /= CONTACT_STRICTNESS;
         }
@@ -483,7 +483,8 @@ impl View<'_> {
                 return d;
             }
             if self.leaf_can_split(id.0)
-                || self.leaf_can_split_in_contact(id.0) && self.in_contact(l.receiver, l.source)
+                || self.leaf_can_split_in_contact(id.0)
+                    && self.in_contact((l.receiver, &r), (l.source, &s))
             {
                 return Decision::Leaf(id.0);
             }
@@ -503,7 +504,8 @@ impl View<'_> {
     fn final_ends(&self, r: NodeId, s: NodeId) -> (bool, bool) {
         let (fr, fs) = (self.unsplittable(r), self.unsplittable(s));
         let graded = |id: NodeId, f: bool| {
-            f && !(self.leaf_can_split_in_contact(id.0) && self.in_contact(r, s))
+            f && !(self.leaf_can_split_in_contact(id.0)
+                && self.in_contact((r, &self.bounds(r)), (s, &self.bounds(s))))
         };
         (graded(r, fr), graded(s, fs))
     }
@@ -973,13 +975,18 @@ impl Solver {
     /// per-element state over; the nodes split, or `None` when the element budget would be
     /// exceeded.
     fn split_leaves(&mut self, h: &mut Hierarchy, leaves: &[u32]) -> Option<Vec<u32>> {
-        let mut marked = vec![false; self.mesh.elements.len()];
-        for &n in leaves {
-            if let Some(e) = self.mesh.nodes[n as usize].element {
-                marked[e as usize] = true;
+        // The elements of `leaves`, closed under balance.
+        let balanced = |leaves: &[u32]| {
+            let mut marked = vec![false; self.mesh.elements.len()];
+            for &n in leaves {
+                if let Some(e) = self.mesh.nodes[n as usize].element {
+                    marked[e as usize] = true;
+                }
             }
-        }
-        self.mesh.balance(&mut marked);
+            self.mesh.balance(&mut marked);
+            marked
+        };
+        let mut marked = balanced(leaves);
         // Leaves split below the minimum size for a contact (see `CONTACT_GRADING`) must not
         // make balance split any element to children narrower than `THINNEST` ray offsets
         // (a strip along a furnace's edge beside them was): if they would, they are left
@@ -995,13 +1002,7 @@ impl Solver {
         let graded = |n: &u32| !can_split(h.node_area[*n as usize], min_size);
         if leaves.iter().any(graded) && too_thin(&marked) {
             let (refused, kept): (Vec<u32>, Vec<u32>) = leaves.iter().partition(|n| graded(n));
-            marked.iter_mut().for_each(|m| *m = false);
-            for &n in &kept {
-                if let Some(e) = self.mesh.nodes[n as usize].element {
-                    marked[e as usize] = true;
-                }
-            }
-            self.mesh.balance(&mut marked);
+            marked = balanced(&kept);
             h.ungraded.extend(refused);
         }
         let count = marked.iter().filter(|m| **m).count();
