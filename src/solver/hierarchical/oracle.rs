@@ -74,8 +74,11 @@ pub(super) struct Round {
     waiting: Vec<Link>,
     leaves: Vec<u32>,
     changed: bool,
-    /// What the last preview cost, in links (see `preview_cost`); zero before the first.
+    /// What one sweep of the last preview cost, in links (see `preview_cost`); zero
+    /// before the first.
     previewed: usize,
+    /// What the round's previews have cost so far, in links.
+    preview_spent: usize,
     /// The last sweep's basis (see `Hierarchy::basis`), put back if the round changes
     /// nothing.
     basis: Option<Vec<glam::DVec3>>,
@@ -92,11 +95,25 @@ impl Round {
 /// What a preview sweep costs, in links: its links, and a sweep's pass over every element
 /// (a pull, the push and the sums), which on Sponza costs as much as about 4 links each
 /// (a preview of a few links over its 445,768 elements took 80 ms, one of 18.7 M links
-/// 0.77 s). Previewing each time this doubles keeps the previews of a round to about two
-/// sweeps of its end, however many elements there are.
+/// 0.77 s).
 fn preview_cost(links: usize, elements: usize) -> usize {
     links + 4 * elements
 }
+
+/// The most sweeps one preview makes: each converges the light over the links it has
+/// (with Anderson's step, as the solve's sweeps do), so that it shows every bounce, not
+/// one more per preview. On the Cornell box the previews after the first few used all
+/// eight and were 1–2 % (of the reference) from where four left them.
+const PREVIEW_SWEEPS: usize = 8;
+
+/// What the previews of a round may cost in all, in links (see `preview_cost`) per ray
+/// the round has cast. A sweep costs about 12 ns a link on the Cornell box and 41 ns on
+/// Sponza, the round about 0.25 µs a ray on both (2 cores), so the previews take at most
+/// 5 % of the round on the Cornell box and 16 % on Sponza (whose previews meet the
+/// tolerance after one sweep: its sweeps converge in three). Measured on the Cornell box:
+/// at half a link per ray the early previews got two sweeps and were 43 % off the
+/// reference at 0.25 s, at one link per ray five and 23 %, at two eight and 23 %.
+const PREVIEW_LINKS_PER_RAY: f64 = 1.0;
 
 /// Links decided per parallel chunk when a generation's decisions are applied.
 const APPLY_CHUNK: usize = 65_536;
@@ -823,10 +840,11 @@ impl Solver {
                 round.pairs = Vec::new();
                 round.next_pair = 0;
                 round.work = std::mem::take(&mut round.made);
-                // Before the first solution, a preview each time its cost has doubled: at
-                // most about two sweeps of the round's end in all. None past the link
+                // Before the first solution, a preview each time a sweep's cost has
+                // doubled, of as many sweeps as the previews' share of the round's rays
+                // allows (at least one, at most PREVIEW_SWEEPS). None past the link
                 // budget (but the first): the links are then final, and the round's own
-                // sweep follows as soon as its last generation is decided.
+                // sweeps follow as soon as its last generation is decided.
                 let cover =
                     round.kept.len() + round.stuck.len() + round.work.len() + round.waiting.len();
                 let cost = preview_cost(cover, self.mesh.elements.len());
@@ -835,11 +853,14 @@ impl Solver {
                     && (first || round.threshold.is_finite() && cost >= 2 * round.previewed)
                 {
                     round.previewed = cost;
+                    let allowed = (self.stats.rays as f64 * PREVIEW_LINKS_PER_RAY) as usize;
+                    let sweeps = (allowed.saturating_sub(round.preview_spent) / cost)
+                        .clamp(1, PREVIEW_SWEEPS);
                     let links = [&round.kept[..], &round.stuck, &round.work, &round.waiting]
                         .into_iter()
                         .flatten()
                         .collect();
-                    self.preview(h, links);
+                    round.preview_spent += cost * self.preview(h, links, sweeps);
                 }
             }
             return Ok(false);

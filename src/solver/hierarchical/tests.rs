@@ -196,21 +196,29 @@ fn previews_light_the_whole_scene_before_the_first_round_ends() {
         last_dark <= converged_dark * 1.01,
         "dark area {last_dark} m² against {converged_dark} m² converged"
     );
-    // Jacobi sweeps from B = E' through non-negative transfers rise towards their fixed
-    // point, and links whose ends overlap carry nothing (the oracle splits them all; their
-    // centre-to-centre kernel is meaningless): no preview may
-    // hold more light than the converged solution, up to the oracle's ε = 2 % on what the
-    // coarser links carry. (Measured: 0.53 of the converged power, the lamp alone, rising
-    // to 0.95.) With the overlapping links carrying their centre-to-centre kernel, the
-    // seventh preview held 2 % more light than the converged solution (and single points
-    // of the bench 150 times their true value).
+    // Links whose ends overlap carry nothing (the oracle splits them all; their
+    // centre-to-centre kernel is meaningless), so the coarser links of a preview carry
+    // less than the finer ones, not more: no preview may hold more light than the
+    // converged solution, up to the oracle's ε = 2 % on what the coarser links carry.
+    // With the overlapping links carrying their centre-to-centre kernel, the seventh
+    // preview held 2 % more light than the converged solution (and single points of the
+    // bench 150 times their true value).
     for (k, p) in previews.iter().enumerate() {
         assert!(
             *p <= converged * 1.02,
             "preview {k}: {p} against {converged}"
         );
     }
-    assert!(previews.last().unwrap() >= &(converged * 0.8));
+    // Each preview converges the light over its links, so the last, whose links are
+    // nearly the first round's, holds nearly all of it: within the same 2 %, and 1 % for
+    // the links the later rounds add. Measured: 0.53 of the converged power (the lamp
+    // alone) rising to 0.989; with one sweep per preview, one bounce more each, the last
+    // held 0.95.
+    let last = previews.last().unwrap();
+    assert!(
+        *last >= converged * 0.97,
+        "last preview {last} against {converged}"
+    );
 }
 
 /// The link budget: a solve whose oracle would make a hundred times more links stops
