@@ -476,7 +476,56 @@ fn the_foot_of_a_block_matches_the_path_traced_reference() {
     // Measured (relative error of the RGB vector): 12.8 % RMS, the worst point 29 %, with
     // leaves held at the minimum size there (an element beside the contact averages light
     // that doubles within it, and the vertex fit extrapolates that average); 5.8 %, the
-    // worst 12 %, with leaves in contact graded to a quarter of it. This 1 % reference adds
-    // about 1 % in quadrature. Bound 8 %.
-    assert!(rms < 0.08, "RMS {rms}");
+    // worst 12 %, with leaves in contact graded to a quarter of it; 1.6 % with receivers
+    // darker than the mean held to their own light (this face is at 4–13 % of the mean)
+    // and ε = 0.03. This 1 % reference adds about 1 % in quadrature.
+    // Bound 4 %.
+    assert!(rms < 0.04, "RMS {rms}");
+}
+
+#[test]
+fn a_dark_face_matches_the_path_traced_reference() {
+    use radiosity::mesh::{MeshSettings, Reconstruction};
+    use radiosity::pipeline::{Prepared, probe_values};
+    // The Cornell box with the command line's defaults, and twelve points over the short
+    // block's front face, 2 to 14.5 cm above the floor: it faces the open front, so all
+    // its light is interreflected, at 4–13 % of the scene's mean radiosity.
+    let scene = builtin::cornell_box();
+    let prepared = Prepared::new(&scene, &MeshSettings::default());
+    let mut solver = prepared
+        .solver(settings(HierarchySettings::default()))
+        .unwrap();
+    common::converge(&mut solver);
+    let (a, b) = (DVec3::new(0.130, 0.0, 0.065), DVec3::new(0.290, 0.0, 0.114));
+    let out = DVec3::Y.cross(b - a).normalize(); // the face's outward normal, towards −z
+    let mut points = Vec::new();
+    for t in [0.2, 0.5, 0.8] {
+        for y in [0.02, 0.06, 0.10, 0.145] {
+            points.push((a + (b - a) * t + DVec3::Y * y + out * 1e-6, out));
+        }
+    }
+    let truth = common::path_traced(&scene, &points, 0.005);
+    let got = probe_values(
+        solver.mesh(),
+        &solver.radiosity(),
+        &points,
+        Reconstruction::Gouraud,
+    );
+    let mut squares = 0.0;
+    for ((g, t), p) in got.iter().zip(&truth).zip(&points) {
+        let err = (g.as_dvec3() - t.value).length() / t.value.length();
+        eprintln!(
+            "{}: {g} against {} ± {}: {err:.4}",
+            p.0, t.value, t.std_error
+        );
+        squares += err * err;
+    }
+    let rms = (squares / got.len() as f64).sqrt();
+    eprintln!("the short block's front face: Gouraud against the reference, RMS {rms:.4}");
+    // Measured (relative error of the RGB vector): 2.2 % RMS, nearly all too bright, with
+    // the oracle's absolute threshold ε · B̄ · (1 − ρ̄) (0.0051 here, 7–17 % of this face's
+    // light); 0.63 % with receivers darker than the mean held to ε · B_r · (1 − ρ̄), and
+    // 0.49 % with that at the default ε = 0.03. This 0.5 % reference adds about 0.5 % in
+    // quadrature. Bound 1.2 %.
+    assert!(rms < 0.012, "RMS {rms}");
 }
