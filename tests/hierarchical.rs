@@ -428,23 +428,53 @@ fn results_do_not_depend_on_the_thread_count() {
     assert!(b1 == b2, "radiosity differs between 1 and 2 threads");
 }
 
-#[test]
-fn the_foot_of_a_block_matches_the_path_traced_reference() {
+/// The bottom edge of the Cornell box's short block's front face, from its left corner to
+/// its right, and the face's outward normal (towards −z, the open front: all the face's
+/// light is interreflected).
+fn short_block_front() -> (DVec3, DVec3, DVec3) {
+    let (a, b) = (DVec3::new(0.130, 0.0, 0.065), DVec3::new(0.290, 0.0, 0.114));
+    let out = DVec3::Y.cross(b - a).normalize();
+    assert!(out.z < 0.0);
+    (a, b, out)
+}
+
+/// The RMS relative error (of the RGB vector) of the viewer's Gouraud reconstruction of
+/// the Cornell box, solved with the command line's defaults, at `points` (position,
+/// normal), against the built-in path tracer at `reference_error`.
+fn cornell_gouraud_error(points: &[(DVec3, DVec3)], reference_error: f64) -> f64 {
     use radiosity::mesh::{MeshSettings, Reconstruction};
     use radiosity::pipeline::{Prepared, probe_values};
-    // The Cornell box with the command line's defaults, and points at the foot of the short
-    // block's front face (it faces the open front, so all its light is interreflected, and
-    // it goes from 0.031 at 0.1 mm above the floor to 0.056 at 4 mm) and on the floor just
-    // in front of it, 0.3 to 2 mm from the contact, at three places along it.
     let scene = builtin::cornell_box();
     let prepared = Prepared::new(&scene, &MeshSettings::default());
     let mut solver = prepared
         .solver(settings(HierarchySettings::default()))
         .unwrap();
     common::converge(&mut solver);
-    let (a, b) = (DVec3::new(0.130, 0.0, 0.065), DVec3::new(0.290, 0.0, 0.114));
-    let out = DVec3::Y.cross(b - a).normalize(); // the face's outward normal, towards −z
-    assert!(out.z < 0.0);
+    let truth = common::path_traced(&scene, points, reference_error);
+    let got = probe_values(
+        solver.mesh(),
+        &solver.radiosity(),
+        points,
+        Reconstruction::Gouraud,
+    );
+    let mut squares = 0.0;
+    for ((g, t), (p, n)) in got.iter().zip(&truth).zip(points) {
+        let err = (g.as_dvec3() - t.value).length() / t.value.length();
+        eprintln!(
+            "{p} ({n}): {g} against {} ± {}: {err:.4}",
+            t.value, t.std_error
+        );
+        squares += err * err;
+    }
+    (squares / got.len() as f64).sqrt()
+}
+
+#[test]
+fn the_foot_of_a_block_matches_the_path_traced_reference() {
+    // Points at the foot of the short block's front face (its light goes from 0.031 at
+    // 0.1 mm above the floor to 0.056 at 4 mm) and on the floor just in front of it, 0.3
+    // to 2 mm from the contact, at three places along it.
+    let (a, b, out) = short_block_front();
     let mut points = Vec::new();
     for t in [0.25, 0.6, 0.9] {
         let foot = a + (b - a) * t;
@@ -453,79 +483,33 @@ fn the_foot_of_a_block_matches_the_path_traced_reference() {
             points.push((foot + out * d + DVec3::Y * 1e-6, DVec3::Y));
         }
     }
-    let truth = common::path_traced(&scene, &points, 0.01);
-    let got = probe_values(
-        solver.mesh(),
-        &solver.radiosity(),
-        &points,
-        Reconstruction::Gouraud,
-    );
-    let mut squares = 0.0;
-    for ((g, t), (p, n)) in got.iter().zip(&truth).zip(&points) {
-        let err = (g.as_dvec3() - t.value).length() / t.value.length();
-        eprintln!(
-            "{p} ({n}): {g} against {} ± {}: {err:.3}",
-            t.value, t.std_error
-        );
-        squares += err * err;
-    }
-    let rms = (squares / got.len() as f64).sqrt();
-    eprintln!(
-        "the foot of the short block: the viewer's Gouraud against the reference, RMS {rms:.3}"
-    );
-    // Measured (relative error of the RGB vector): 12.8 % RMS, the worst point 29 %, with
-    // leaves held at the minimum size there (an element beside the contact averages light
-    // that doubles within it, and the vertex fit extrapolates that average); 5.8 %, the
-    // worst 12 %, with leaves in contact graded to a quarter of it; 1.6 % with receivers
-    // darker than the mean held to their own light (this face is at 4–13 % of the mean)
-    // and ε = 0.03. This 1 % reference adds about 1 % in quadrature.
-    // Bound 4 %.
+    let rms = cornell_gouraud_error(&points, 0.01);
+    eprintln!("the foot of the short block: Gouraud against the reference, RMS {rms:.3}");
+    // Measured: 12.8 % RMS, the worst point 29 %, with leaves held at the minimum size
+    // there (an element beside the contact averages light that doubles within it, and the
+    // vertex fit extrapolates that average); 5.8 %, the worst 12 %, with leaves in contact
+    // graded to a quarter of it; 1.6 % with receivers darker than the mean held to their
+    // own light (this face is at 4–13 % of the mean) and ε = 0.03. This 1 % reference
+    // adds about 1 % in quadrature. Bound 4 %.
     assert!(rms < 0.04, "RMS {rms}");
 }
 
 #[test]
 fn a_dark_face_matches_the_path_traced_reference() {
-    use radiosity::mesh::{MeshSettings, Reconstruction};
-    use radiosity::pipeline::{Prepared, probe_values};
-    // The Cornell box with the command line's defaults, and twelve points over the short
-    // block's front face, 2 to 14.5 cm above the floor: it faces the open front, so all
-    // its light is interreflected, at 4–13 % of the scene's mean radiosity.
-    let scene = builtin::cornell_box();
-    let prepared = Prepared::new(&scene, &MeshSettings::default());
-    let mut solver = prepared
-        .solver(settings(HierarchySettings::default()))
-        .unwrap();
-    common::converge(&mut solver);
-    let (a, b) = (DVec3::new(0.130, 0.0, 0.065), DVec3::new(0.290, 0.0, 0.114));
-    let out = DVec3::Y.cross(b - a).normalize(); // the face's outward normal, towards −z
+    // Twelve points over the short block's front face, 2 to 14.5 cm above the floor, at
+    // 4–13 % of the scene's mean radiosity.
+    let (a, b, out) = short_block_front();
     let mut points = Vec::new();
     for t in [0.2, 0.5, 0.8] {
         for y in [0.02, 0.06, 0.10, 0.145] {
             points.push((a + (b - a) * t + DVec3::Y * y + out * 1e-6, out));
         }
     }
-    let truth = common::path_traced(&scene, &points, 0.005);
-    let got = probe_values(
-        solver.mesh(),
-        &solver.radiosity(),
-        &points,
-        Reconstruction::Gouraud,
-    );
-    let mut squares = 0.0;
-    for ((g, t), p) in got.iter().zip(&truth).zip(&points) {
-        let err = (g.as_dvec3() - t.value).length() / t.value.length();
-        eprintln!(
-            "{}: {g} against {} ± {}: {err:.4}",
-            p.0, t.value, t.std_error
-        );
-        squares += err * err;
-    }
-    let rms = (squares / got.len() as f64).sqrt();
+    let rms = cornell_gouraud_error(&points, 0.005);
     eprintln!("the short block's front face: Gouraud against the reference, RMS {rms:.4}");
-    // Measured (relative error of the RGB vector): 2.2 % RMS, nearly all too bright, with
-    // the oracle's absolute threshold ε · B̄ · (1 − ρ̄) (0.0051 here, 7–17 % of this face's
-    // light); 0.63 % with receivers darker than the mean held to ε · B_r · (1 − ρ̄), and
-    // 0.49 % with that at the default ε = 0.03. This 0.5 % reference adds about 0.5 % in
-    // quadrature. Bound 1.2 %.
+    // Measured: 2.2 % RMS, nearly all too bright, with the oracle's absolute threshold
+    // ε · B̄ · (1 − ρ̄) (0.0051 here, 7–17 % of this face's light); 0.63 % with receivers
+    // darker than the mean held to ε · B_r · (1 − ρ̄), and 0.49 % with that at the
+    // default ε = 0.03. This 0.5 % reference adds about 0.5 % in quadrature. Bound 1.2 %.
     assert!(rms < 0.012, "RMS {rms}");
 }
