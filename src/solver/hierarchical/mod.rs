@@ -911,7 +911,7 @@ impl Solver {
     ///
     /// One sweep per preview showed one more bounce each time, far below the light the
     /// links carry: on the Cornell box the previews were 63 % off the reference at 1 s
-    /// and 27 % at 5 s; converged, 18 % and 8 %.
+    /// and 27 % at 5 s; converged, 17 % and 8 %.
     fn preview(&mut self, h: &mut Hierarchy, mut links: Vec<&Link>, sweeps: usize) -> usize {
         let saved = (
             h.node_b.clone(),
