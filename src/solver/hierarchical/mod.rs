@@ -333,6 +333,13 @@ pub(super) struct Hierarchy {
     round: Option<oracle::Round>,
     /// The largest oracle threshold so far (see `Solver::held_threshold`).
     threshold: f32,
+    /// The scene's mean radiosity (largest channel) when the last refinement round
+    /// began, zero before the first sweep (no receiver counts as dark): receivers darker
+    /// than it are held to a threshold scaled by their own radiosity (see
+    /// `View::darkness`). The mean of that moment, not the one the held threshold came
+    /// from, so that an edit that dims every light leaves each receiver's darkness as it
+    /// was; kept so that the link inspector judges as the round did.
+    dark_mean: f32,
     sweeps: u64,
     /// Sweeps that were incremental.
     incremental_sweeps: u64,
@@ -388,6 +395,7 @@ impl Hierarchy {
             acceleration: Anderson::default(),
             round: None,
             threshold: 0.0,
+            dark_mean: 0.0,
             sweeps: 0,
             incremental_sweeps: 0,
             started: Instant::now(),

@@ -63,9 +63,6 @@ pub(super) struct Round {
     /// ρ̄ / (1 − ρ̄) (the ambient term of Cohen et al. 1988), so it links as the lit scene
     /// needs; later rounds use the solution itself.
     ambient: f32,
-    /// The scene's mean radiosity (largest channel) when the round began, zero before
-    /// the first sweep: see `View::darkness`.
-    mean_b: f32,
     /// Links decided to stay.
     kept: Vec<Link>,
     /// Links above their threshold kept only because no end could split: decided again
@@ -170,12 +167,6 @@ struct View<'a> {
     threshold: f32,
     /// The light a source is expected to reflect before any sweep (see `Round::ambient`).
     ambient: f32,
-    /// The scene's mean radiosity (zero before the first sweep: no receiver counts as
-    /// dark): receivers darker than it are held to a threshold scaled by their own
-    /// radiosity (see `View::darkness`). Today's mean, not the one the held threshold came
-    /// from, so that an edit that dims every light leaves each receiver's darkness as it
-    /// was.
-    mean_b: f32,
 }
 
 /// Where a node is and how large, which is all the oracle's decisions read of its
@@ -474,8 +465,9 @@ impl View<'_> {
     /// interreflection at 4–13 % of the mean, went from 2.2 % to 0.6 % RMS against the
     /// path-traced reference.
     fn darkness(&self, r: NodeId) -> f32 {
-        if self.mean_b > 0.0 {
-            (self.h.b(r).max_element() / self.mean_b).clamp(DARK_FLOOR, 1.0)
+        let mean = self.h.dark_mean;
+        if mean > 0.0 {
+            (self.h.b(r).max_element() / mean).clamp(DARK_FLOOR, 1.0)
         } else {
             1.0
         }
@@ -678,7 +670,6 @@ impl Solver {
             min_size,
             threshold: 0.0,
             ambient: 0.0,
-            mean_b: 0.0,
         };
         let pairs: Vec<(NodeId, NodeId)> = if self.settings.hierarchy.clustering {
             if h.clusters.nodes.is_empty() {
@@ -714,7 +705,6 @@ impl Solver {
             min_size: self.hierarchy_min_size(),
             threshold: h.threshold,
             ambient: 0.0,
-            mean_b: self.mean_radiosity() as f32,
         };
         let (r, s) = (view.bounds(l.receiver), view.bounds(l.source));
         view.estimate(l, &r, &s)
@@ -803,14 +793,14 @@ impl Solver {
                 } else {
                     0.0
                 };
+                h.dark_mean = if h.sweeps == 0 {
+                    0.0
+                } else {
+                    self.mean_radiosity() as f32
+                };
                 Round {
                     threshold,
                     external_threshold: threshold,
-                    mean_b: if h.sweeps == 0 {
-                        0.0
-                    } else {
-                        self.mean_radiosity() as f32
-                    },
                     ambient,
                     work: h.links.take(),
                     changed,
@@ -865,7 +855,6 @@ impl Solver {
             min_size,
             threshold: round.threshold,
             ambient: round.ambient,
-            mean_b: round.mean_b,
         };
         if round.next_pair < round.pairs.len() {
             // Evaluate the next chunk of new links.
