@@ -513,3 +513,85 @@ fn a_dark_face_matches_the_path_traced_reference() {
     // default ε = 0.03. This 0.5 % reference adds about 0.5 % in quadrature. Bound 1.2 %.
     assert!(rms < 0.012, "RMS {rms}");
 }
+
+/// A hollow box (walls 2 cm thick: outer faces facing out, inner faces facing in) on a
+/// floor lit from straight above. No light gets inside: the inner faces' exact radiosity
+/// is 0, against ρ E = 0.5 on the floor.
+/// - Refined to ε (the default link budget): the links reach the surfaces, whose shadow
+///   rays the walls stop; the inside must be black to 10⁻⁴ of the floor.
+/// - Cut to 1,000 links by the link budget, links stay at clusters that hold outer and
+///   inner faces alike. A cluster's light went to every leaf below it that faced its way,
+///   and the inside took 6.4 % of the floor's radiosity on average. Each leaf now takes a
+///   cluster's light as far as its own rays find a way to it (`sight`): 3.6 %. What is
+///   left comes through far links to clusters smaller than the box, whose inner leaves'
+///   rays leave the cluster (they hit the other walls) and count as open; the bound, 5 %,
+///   is between the two.
+#[test]
+fn the_inside_of_a_closed_box_stays_dark() {
+    use common::{floor, quad};
+    use radiosity::scene::{Light, Object};
+    let (h, t, w) = (0.3f32, 0.6f32, 0.02f32);
+    let mut hollow = Object {
+        name: "hollow box".into(),
+        ..Default::default()
+    };
+    // Six faces of the box [−a, a] × [y0, y1] × [−a, a], counter-clockwise seen from
+    // outside; `inward` reverses each winding, so the faces look into the box.
+    let faces = |a: f32, y0: f32, y1: f32| {
+        [
+            [[-a, y1, -a], [-a, y1, a], [a, y1, a], [a, y1, -a]],
+            [[-a, y0, -a], [a, y0, -a], [a, y0, a], [-a, y0, a]],
+            [[a, y0, -a], [a, y1, -a], [a, y1, a], [a, y0, a]],
+            [[-a, y0, -a], [-a, y0, a], [-a, y1, a], [-a, y1, -a]],
+            [[-a, y0, a], [a, y0, a], [a, y1, a], [-a, y1, a]],
+            [[-a, y0, -a], [-a, y1, -a], [a, y1, -a], [a, y0, -a]],
+        ]
+    };
+    for f in faces(h, 0.0, t) {
+        quad(&mut hollow, f, 0);
+    }
+    let inner_first = hollow.triangles.len();
+    for mut f in faces(h - w, w, t - w) {
+        f.reverse();
+        quad(&mut hollow, f, 0);
+    }
+    let scene = Scene {
+        name: "hollow box".into(),
+        objects: vec![floor(glam::DMat4::IDENTITY), hollow],
+        materials: vec![Material::diffuse("white", Vec3::splat(0.5))],
+        lights: vec![Light::Directional {
+            direction: DVec3::new(0.0, -1.0, 0.0),
+            irradiance: Vec3::ONE,
+        }],
+        environment: None,
+        images: Vec::new(),
+        warnings: Vec::new(),
+    };
+    for max_links in [1000, HierarchySettings::default().max_links] {
+        let s = solve(
+            &scene,
+            HierarchySettings {
+                max_links,
+                ..Default::default()
+            },
+        );
+        let mesh = s.mesh();
+        let b = s.radiosity();
+        let (mut inside, mut area, mut top) = (0.0f64, 0.0f64, 0.0f64);
+        for (i, e) in mesh.elements.iter().enumerate() {
+            let patch = &mesh.patches[e.patch as usize];
+            let object = patch.object as usize;
+            if object == 1 && patch.triangle as usize >= inner_first {
+                inside += b[i].x as f64 * e.area as f64;
+                area += e.area as f64;
+                top = top.max(b[i].x as f64);
+            }
+        }
+        let mean = inside / area / 0.5;
+        let bound = if max_links == 1000 { 0.05 } else { 1e-4 };
+        assert!(
+            mean <= bound,
+            "{max_links} links: the inside has {mean} of the floor's B on average (up to {top})"
+        );
+    }
+}

@@ -26,6 +26,7 @@
 //! of the changed nodes instead of all links; where more than a quarter of the elements or
 //! of the links would be touched, the full sweep is cheaper and runs instead.
 
+use super::sight::Sight;
 use super::table::{LinkTable, StoredLink};
 use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_at};
 use crate::mesh::Mesh;
@@ -114,7 +115,8 @@ fn position_of(items: &[u32], len: usize) -> Vec<u32> {
 /// The change one receiver gathers.
 enum Change {
     Surface(u32, [Vec3; 3]),
-    Cluster(usize, Octants),
+    /// By direction over far links, and the mean over near ones.
+    Cluster(usize, Octants, Vec3),
 }
 
 impl Hierarchy {
@@ -168,6 +170,7 @@ impl Hierarchy {
             .iter()
             .map(|&n| self.node_corners[n as usize])
             .collect();
+        let b_then: Vec<Vec3> = nodes.iter().map(|&n| self.node_b[n as usize]).collect();
         let sent_then: Vec<Sender> = clusters
             .iter()
             .map(|&c| self.cluster_send[c as usize])
@@ -223,7 +226,9 @@ impl Hierarchy {
         // ancestors' linear H at its centroid and of what its cluster pushes down.
         let mut surface = Vec::new();
         let mut delta = Vec::new();
-        let mut down = vec![Octants::default(); self.clusters.nodes.len()];
+        let mut far = vec![Octants::default(); self.clusters.nodes.len()];
+        let mut near = vec![Vec3::ZERO; self.clusters.nodes.len()];
+        let mut pushed = vec![false; self.clusters.nodes.len()];
         for change in changes {
             match change {
                 Change::Surface(r, h) => {
@@ -234,14 +239,34 @@ impl Hierarchy {
                     surface.push(r);
                     delta.push(h);
                 }
-                Change::Cluster(c, o) => {
+                Change::Cluster(c, o, e) => {
                     self.cluster_h[c].merge(&o);
-                    down[c] = o;
+                    self.cluster_near[c] += e;
+                    (far[c], near[c]) = (o, e);
+                    // Marked even where nothing changed by direction: the near links'
+                    // rays read the patches that changed.
+                    pushed[c] = true;
                 }
             }
         }
-        self.push_down_clusters(&mut down);
-        let pushed: Vec<bool> = down.iter().map(|o| *o != Octants::default()).collect();
+        // What the near links' rays take changes by the change of the patches they hit.
+        let patch_change = || {
+            let mut change = vec![Vec3::ZERO; mesh.patches.len()];
+            for (&n, then) in nodes.iter().zip(&b_then) {
+                if self.parent[n as usize] == NONE {
+                    change[self.node_patch[n as usize] as usize] = self.node_b[n as usize] - *then;
+                }
+            }
+            change
+        };
+        let down = self.push_clusters(&far, &near, patch_change);
+        // Parents come first: a cluster below one that changed takes its change.
+        for c in 1..pushed.len() {
+            let p = self.clusters.nodes[c].parent;
+            if p != NONE && pushed[p as usize] {
+                pushed[c] = true;
+            }
+        }
         // Below a surface receiver that changed, a leaf walks up its ancestors for their
         // changes; below a cluster that changed, it takes what the cluster pushes down.
         let surface_at = position_of(&surface, mesh.nodes.len());
@@ -287,7 +312,7 @@ impl Hierarchy {
                     k = this.parent[k as usize];
                 }
                 if from_cluster {
-                    d += down[c as usize].at(element.normal);
+                    d += Sight::leaf(this.leaf_sight(), e, element.normal, c, &down);
                 }
                 *linear += d;
                 *gathered = this.capped(e, *linear).as_dvec3();
@@ -356,11 +381,12 @@ impl Hierarchy {
                 let cluster = &self.clusters.nodes[c];
                 let at = cluster.centre;
                 let mut o = Octants::default();
+                let mut near = Vec3::ZERO;
                 for l in group {
                     let (d, to_source) = change(l, at);
                     let e = d * l.transfer.factor();
                     if l.transfer.spread().is_infinite() {
-                        o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                        near += e;
                     } else {
                         let to_source = to_source.unwrap_or_else(|| {
                             (self.centre(mesh, l.source) - at).normalize_or_zero()
@@ -368,7 +394,7 @@ impl Hierarchy {
                         o.add(e, to_source);
                     }
                 }
-                Change::Cluster(c, o)
+                Change::Cluster(c, o, near)
             }
             None => {
                 let at = self.centre(mesh, r);

@@ -38,6 +38,7 @@ mod incremental;
 mod inspect;
 mod link;
 mod oracle;
+mod sight;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -46,6 +47,7 @@ pub(super) mod transfer;
 use super::anderson::Anderson;
 use super::types::Stop;
 use super::{ELEMENT_CHUNK, Solver, ordered_sum, sum3d};
+use crate::accel::Bvh;
 use crate::geometry::closest_point_on_triangle;
 use crate::mesh::Mesh;
 use clusters::Clusters;
@@ -53,6 +55,7 @@ use glam::{DVec2, DVec3, Vec3};
 pub use inspect::{ElementLinks, LinkView};
 use link::Link;
 use rayon::prelude::*;
+use sight::{ClusterLight, Sight};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 use table::{LinkTable, StoredLink};
@@ -289,8 +292,14 @@ pub(super) struct Hierarchy {
     cluster_facing: Vec<Facing>,
     /// The same as the gather reads it: see [`Sender`].
     cluster_send: Vec<Sender>,
-    /// Irradiance a cluster receives, by direction: see [`Octants`].
+    /// Irradiance a cluster receives over its far links, by direction: see [`Octants`].
     cluster_h: Vec<Octants>,
+    /// Irradiance a cluster receives over its near links (ends that overlap), the mean
+    /// over its surfaces.
+    cluster_near: Vec<Vec3>,
+    /// What each leaf sees, to weigh what the clusters push down to it (see [`sight`]);
+    /// `None` until the first round's links are made, and after the leaves change.
+    sight: Option<sight::Sight>,
     /// The leaf node of each element.
     element_node: Vec<u32>,
     /// Per element, its area and the cluster above its patch (`NONE` for none): what the
@@ -368,6 +377,8 @@ impl Hierarchy {
             cluster_facing: vec![Facing::default(); clusters.nodes.len()],
             cluster_send: vec![Sender::default(); clusters.nodes.len()],
             cluster_h: vec![Octants::default(); clusters.nodes.len()],
+            cluster_near: vec![Vec3::ZERO; clusters.nodes.len()],
+            sight: None,
             clusters,
             links: LinkTable::default(),
             parent: Vec::new(),
@@ -407,6 +418,7 @@ impl Hierarchy {
     /// Extends the per-node arrays to nodes the mesh gained, and maps elements to leaves.
     fn grow(&mut self, mesh: &Mesh) {
         self.links_changed();
+        self.sight = None;
         let old = self.parent.len();
         let n = mesh.nodes.len();
         self.parent.resize(n, NONE);
@@ -586,12 +598,13 @@ impl Hierarchy {
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
         let centre = |id: NodeId| self.centre(mesh, id);
-        let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
+        let sums: Vec<(NodeId, [Vec3; 3], Octants, Vec3)> = self
             .links
             .par_groups()
             .map(|(r, group)| {
                 let mut h = [Vec3::ZERO; 3];
                 let mut o = Octants::default();
+                let mut near = Vec3::ZERO;
                 if let Some(c) = r.cluster() {
                     let cluster = &self.clusters.nodes[c];
                     let at = cluster.centre;
@@ -608,9 +621,8 @@ impl Hierarchy {
                         let e = b * l.transfer.factor();
                         if l.transfer.spread().is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
-                            // carries the mean irradiance over the cluster's surfaces,
-                            // arriving from every side.
-                            o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                            // carries the mean irradiance over the cluster's surfaces.
+                            near += e;
                         } else {
                             o.add(e, to_source);
                         }
@@ -625,43 +637,60 @@ impl Hierarchy {
                         }
                     }
                 }
-                (r, h, o)
+                (r, h, o, near)
             })
             .collect();
         self.node_h.iter_mut().for_each(|h| *h = [Vec3::ZERO; 3]);
         self.cluster_h
             .iter_mut()
             .for_each(|h| *h = Octants::default());
-        for (r, h, o) in sums {
+        self.cluster_near.iter_mut().for_each(|h| *h = Vec3::ZERO);
+        for (r, h, o, near) in sums {
             match r.cluster() {
-                Some(c) => self.cluster_h[c] = o,
+                Some(c) => (self.cluster_h[c], self.cluster_near[c]) = (o, near),
                 None => self.node_h[r.0 as usize] = h,
             }
         }
     }
 
-    /// H pushed down the clusters: each cluster's own plus its ancestors'.
-    fn cluster_down(&self) -> Vec<Octants> {
-        let mut down = self.cluster_h.clone();
-        self.push_down_clusters(&mut down);
-        down
+    /// H pushed down the clusters, laid out for the leaves (see [`sight`]).
+    fn cluster_down(&self, mesh: &Mesh) -> ClusterLight {
+        let patch_b = || {
+            mesh.patches
+                .iter()
+                .map(|p| self.node_b[p.root as usize])
+                .collect()
+        };
+        self.push_clusters(&self.cluster_h, &self.cluster_near, patch_b)
     }
 
-    /// Adds to each cluster's `down` what its ancestors' hold: one pass, parents first.
-    fn push_down_clusters(&self, down: &mut [Octants]) {
-        for c in 0..down.len() {
-            let p = self.clusters.nodes[c].parent;
-            if p != NONE {
-                let above = down[p as usize];
-                down[c].merge(&above);
-            }
+    /// What clusters gathered over their far links (`far`) and near links (`near`),
+    /// laid out for the leaves: weighed by what each leaf sees where the sight fits the
+    /// leaves (the near links' light then comes from `patch_b`, each patch's radiosity, along
+    /// the leaves' rays), by facing alone otherwise.
+    fn push_clusters(
+        &self,
+        far: &[Octants],
+        near: &[Vec3],
+        patch_b: impl FnOnce() -> Vec<Vec3>,
+    ) -> ClusterLight {
+        match self.leaf_sight() {
+            Some(sight) => sight.push(&self.clusters, far, patch_b()),
+            None => ClusterLight::plain(far, near, &self.clusters),
         }
+    }
+
+    /// The leaves' sight, where it was cast for these leaves.
+    fn leaf_sight(&self) -> Option<&Sight> {
+        self.sight
+            .as_ref()
+            .filter(|s| s.fits(self.element_node.len()))
     }
 
     /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
     /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
     /// receive, area-weighted, exactly what it gathered: push conserves power).
-    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &[Octants]) -> Vec3 {
+    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &ClusterLight) -> Vec3 {
         let mut node = self.element_node[element];
         let x = mesh.elements[element].centroid();
         let mut h = Vec3::ZERO;
@@ -669,9 +698,10 @@ impl Hierarchy {
             h += linear_at(mesh, node, &self.node_h[node as usize], x);
             node = self.parent[node as usize];
         }
-        let c = self.clusters.patch_parent[mesh.elements[element].patch as usize];
+        let c = self.element_cluster[element];
         if c != NONE {
-            h += down[c as usize].at(mesh.elements[element].normal);
+            let normal = mesh.elements[element].normal;
+            h += Sight::leaf(self.leaf_sight(), element, normal, c, down);
         }
         h
     }
@@ -703,11 +733,23 @@ impl Hierarchy {
     /// its brightest leaf, so the caps bound the light a leaf takes without proving the
     /// sweeps a contraction. A capped leaf's links are all scaled alike, whichever of them
     /// brought the excess. Leaves the node values at `radiosity`, as a pull does.
-    fn conservation_caps(&mut self, mesh: &Mesh, radiosity: &[DVec3]) {
+    fn conservation_caps(&mut self, mesh: &Mesh, bvh: &Bvh, radiosity: &[DVec3]) {
+        if self.leaf_sight().is_none() {
+            let sight = Sight::cast(mesh, bvh, &self.clusters, &self.element_cluster);
+            self.sight = Some(sight);
+        }
+        if let Some(sight) = self.sight.as_mut() {
+            sight.match_near(
+                &self.clusters,
+                &self.links,
+                &self.node_patch,
+                &self.element_cluster,
+            );
+        }
         let ones = vec![DVec3::ONE; mesh.elements.len()];
         self.pull(mesh, &ones);
         self.gather(mesh);
-        let down = self.cluster_down();
+        let down = self.cluster_down(mesh);
         self.leaf_cap = (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(1024)
@@ -788,14 +830,14 @@ impl Solver {
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
                     if changed {
-                        h.conservation_caps(&self.mesh, &self.radiosity);
+                        h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity);
                     }
                 }
             },
             Stage::Sweep => {
                 // Leaves split in a round that kept its links: caps of another length.
                 if h.leaf_cap.len() != self.mesh.elements.len() {
-                    h.conservation_caps(&self.mesh, &self.radiosity);
+                    h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity);
                 }
                 let change = self.sweep(h, true);
                 h.sweeps += 1;
@@ -823,6 +865,7 @@ impl Solver {
     /// links out of what changed.
     fn sweep(&mut self, h: &mut Hierarchy, may_be_incremental: bool) -> f64 {
         self.rebase_on_sweep_basis(h);
+
         let mesh = &self.mesh;
         let incremental = may_be_incremental
             && h.sweep_incrementally(mesh, &self.radiosity, &mut self.gathered)
@@ -834,7 +877,7 @@ impl Solver {
             h.incremental_in_a_row = 0;
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
-            let down = h.cluster_down();
+            let down = h.cluster_down(mesh);
             // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
             // at once (`edits`); the linear H for incremental sweeps.
             (h.leaf_linear, self.gathered) = (0..mesh.elements.len())
