@@ -521,11 +521,11 @@ fn a_dark_face_matches_the_path_traced_reference() {
 ///   rays the walls stop; the inside must be black to 10⁻⁴ of the floor.
 /// - Cut to 1,000 links by the link budget, links stay at clusters that hold outer and
 ///   inner faces alike. A cluster's light went to every leaf below it that faced its way,
-///   and the inside took 6.4 % of the floor's radiosity on average. Each leaf now takes a
-///   cluster's light as far as its own rays find a way to it (`sight`): 3.6 %. What is
-///   left comes through far links to clusters smaller than the box, whose inner leaves'
-///   rays leave the cluster (they hit the other walls) and count as open; the bound, 5 %,
-///   is between the two.
+///   and the inside took 6.4 % of the floor's radiosity on average. Each leaf now takes
+///   the clusters' light along its own rays (`sight`), which inside hit only the inner
+///   walls: 4.4 %. What is left enters through the surface links the budget leaves
+///   coarse, and the rays pass on only what the inner walls took from them. The bound,
+///   5 %, is between the two.
 #[test]
 fn the_inside_of_a_closed_box_stays_dark() {
     use common::{floor, quad};

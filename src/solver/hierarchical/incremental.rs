@@ -19,14 +19,15 @@
 //!   receiver in link order;
 //! - a leaf's linear H changes only below a receiver that changed: by the change of its
 //!   quadtree ancestors' linear H at its centroid and of what the clusters above its patch
-//!   push down; it is cut at zero and capped again, and every leaf takes B = E' + ρ H.
+//!   push down, which along the leaves' rays (`sight`) is the change of the elements its
+//!   rays hit; it is cut at zero and capped again, and every leaf takes B = E' + ρ H.
 //!
 //! This is the full sweep from x up to the f32 rounding of the sums (pull, gather and push
 //! are linear in B, and the clamps are applied to the new totals). It costs the links out
 //! of the changed nodes instead of all links; where more than a quarter of the elements or
 //! of the links would be touched, the full sweep is cheaper and runs instead.
 
-use super::sight::Sight;
+use super::sight::{ClusterLight, Sight};
 use super::table::{LinkTable, StoredLink};
 use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_at};
 use crate::mesh::Mesh;
@@ -148,6 +149,15 @@ impl Hierarchy {
         if changed.len() > x.len() / 4 {
             return None;
         }
+        // Along the leaves' rays, the clusters bring the change of the elements they hit.
+        let by_rays = self.leaf_sight().is_some();
+        let (mut b_change, mut is_changed) = (Vec::new(), Vec::new());
+        if by_rays {
+            (b_change, is_changed) = (vec![DVec3::ZERO; x.len()], vec![false; x.len()]);
+            for &e in &changed {
+                (b_change[e], is_changed[e]) = (x[e] - basis[e], true);
+            }
+        }
         let (nodes, clusters) = self.above(mesh, &changed);
         self.index_links_by_source(mesh);
         let by_source = self.by_source.as_ref()?;
@@ -170,7 +180,6 @@ impl Hierarchy {
             .iter()
             .map(|&n| self.node_corners[n as usize])
             .collect();
-        let b_then: Vec<Vec3> = nodes.iter().map(|&n| self.node_b[n as usize]).collect();
         let sent_then: Vec<Sender> = clusters
             .iter()
             .map(|&c| self.cluster_send[c as usize])
@@ -243,23 +252,15 @@ impl Hierarchy {
                     self.cluster_h[c].merge(&o);
                     self.cluster_near[c] += e;
                     (far[c], near[c]) = (o, e);
-                    // Marked even where nothing changed by direction: the near links'
-                    // rays read the patches that changed.
-                    pushed[c] = true;
+                    pushed[c] = o != Octants::default() || e != Vec3::ZERO;
                 }
             }
         }
-        // What the near links' rays take changes by the change of the patches they hit.
-        let patch_change = || {
-            let mut change = vec![Vec3::ZERO; mesh.patches.len()];
-            for (&n, then) in nodes.iter().zip(&b_then) {
-                if self.parent[n as usize] == NONE {
-                    change[self.node_patch[n as usize] as usize] = self.node_b[n as usize] - *then;
-                }
-            }
-            change
+        let down = if by_rays {
+            ClusterLight::rays(&b_change)
+        } else {
+            ClusterLight::facing(&far, &near, &self.clusters)
         };
-        let down = self.push_clusters(&far, &near, patch_change);
         // Parents come first: a cluster below one that changed takes its change.
         for c in 1..pushed.len() {
             let p = self.clusters.nodes[c].parent;
@@ -294,7 +295,11 @@ impl Hierarchy {
                 // each) are read only for the leaves that changed.
                 let n = this.element_node[e];
                 let c = this.element_cluster[e];
-                let from_cluster = c != NONE && pushed[c as usize];
+                let from_cluster = c != NONE
+                    && match this.leaf_sight() {
+                        Some(sight) => sight.sees_any(e, &is_changed),
+                        None => pushed[c as usize],
+                    };
                 let from_surface = n != NONE && below_surface[n as usize];
                 if !(from_cluster || from_surface) {
                     return;

@@ -598,6 +598,8 @@ impl Hierarchy {
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
         let centre = |id: NodeId| self.centre(mesh, id);
+        // Along the leaves' rays the clusters' links carry nothing the leaves read.
+        let by_rays = self.leaf_sight().is_some();
         let sums: Vec<(NodeId, [Vec3; 3], Octants, Vec3)> = self
             .links
             .par_groups()
@@ -605,6 +607,9 @@ impl Hierarchy {
                 let mut h = [Vec3::ZERO; 3];
                 let mut o = Octants::default();
                 let mut near = Vec3::ZERO;
+                if by_rays && r.cluster().is_some() {
+                    return (r, h, o, near);
+                }
                 if let Some(c) = r.cluster() {
                     let cluster = &self.clusters.nodes[c];
                     let at = cluster.centre;
@@ -653,30 +658,13 @@ impl Hierarchy {
         }
     }
 
-    /// H pushed down the clusters, laid out for the leaves (see [`sight`]).
-    fn cluster_down(&self, mesh: &Mesh) -> ClusterLight {
-        let patch_b = || {
-            mesh.patches
-                .iter()
-                .map(|p| self.node_b[p.root as usize])
-                .collect()
-        };
-        self.push_clusters(&self.cluster_h, &self.cluster_near, patch_b)
-    }
-
-    /// What clusters gathered over their far links (`far`) and near links (`near`),
-    /// laid out for the leaves: weighed by what each leaf sees where the sight fits the
-    /// leaves (the near links' light then comes from `patch_b`, each patch's radiosity, along
-    /// the leaves' rays), by facing alone otherwise.
-    fn push_clusters(
-        &self,
-        far: &[Octants],
-        near: &[Vec3],
-        patch_b: impl FnOnce() -> Vec<Vec3>,
-    ) -> ClusterLight {
+    /// The light of the links to clusters, laid out for the leaves: along their rays
+    /// where the sight fits the leaves (from the elements' radiosity `b`), by facing
+    /// otherwise (see [`sight`]).
+    fn cluster_down(&self, b: &[DVec3]) -> ClusterLight {
         match self.leaf_sight() {
-            Some(sight) => sight.push(&self.clusters, far, patch_b()),
-            None => ClusterLight::plain(far, near, &self.clusters),
+            Some(_) => ClusterLight::rays(b),
+            None => ClusterLight::facing(&self.cluster_h, &self.cluster_near, &self.clusters),
         }
     }
 
@@ -687,10 +675,8 @@ impl Hierarchy {
             .filter(|s| s.fits(self.element_node.len()))
     }
 
-    /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
-    /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
-    /// receive, area-weighted, exactly what it gathered: push conserves power).
-    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &ClusterLight) -> Vec3 {
+    /// The part of a leaf's H its own links and its quadtree ancestors' bring.
+    fn leaf_surface_irradiance(&self, mesh: &Mesh, element: usize) -> Vec3 {
         let mut node = self.element_node[element];
         let x = mesh.elements[element].centroid();
         let mut h = Vec3::ZERO;
@@ -698,6 +684,14 @@ impl Hierarchy {
             h += linear_at(mesh, node, &self.node_h[node as usize], x);
             node = self.parent[node as usize];
         }
+        h
+    }
+
+    /// Irradiance H a leaf receives: its own links', its ancestors' and its clusters'.
+    /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
+    /// receive, area-weighted, exactly what it gathered: push conserves power).
+    fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &ClusterLight) -> Vec3 {
+        let mut h = self.leaf_surface_irradiance(mesh, element);
         let c = self.element_cluster[element];
         if c != NONE {
             let normal = mesh.elements[element].normal;
@@ -735,21 +729,28 @@ impl Hierarchy {
     /// brought the excess. Leaves the node values at `radiosity`, as a pull does.
     fn conservation_caps(&mut self, mesh: &Mesh, bvh: &Bvh, radiosity: &[DVec3]) {
         if self.leaf_sight().is_none() {
-            let sight = Sight::cast(mesh, bvh, &self.clusters, &self.element_cluster);
-            self.sight = Some(sight);
+            self.sight = Some(Sight::cast(mesh, bvh));
         }
         if let Some(sight) = self.sight.as_mut() {
-            sight.match_near(
-                &self.clusters,
-                &self.links,
-                &self.node_patch,
-                &self.element_cluster,
+            let nodes = (
+                &self.element_node[..],
+                &self.parent[..],
+                &self.node_patch[..],
             );
+            sight.match_links(mesh, &self.links, nodes, &self.clusters);
         }
         let ones = vec![DVec3::ONE; mesh.elements.len()];
         self.pull(mesh, &ones);
         self.gather(mesh);
-        let down = self.cluster_down(mesh);
+        let share = (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|e| self.leaf_surface_irradiance(mesh, e).x)
+            .collect();
+        if let Some(sight) = self.sight.as_mut() {
+            sight.set_surface_share(share);
+        }
+        let down = self.cluster_down(&ones);
         self.leaf_cap = (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(1024)
@@ -877,7 +878,7 @@ impl Solver {
             h.incremental_in_a_row = 0;
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
-            let down = h.cluster_down(mesh);
+            let down = h.cluster_down(&self.radiosity);
             // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
             // at once (`edits`); the linear H for incremental sweeps.
             (h.leaf_linear, self.gathered) = (0..mesh.elements.len())
@@ -973,8 +974,10 @@ impl Solver {
         links.par_sort_unstable_by_key(|l| (l.receiver, l.source));
         h.links = LinkTable::new(&links, false);
         drop(links);
-        // The caps belong to the links of the last round, not to these.
+        // The caps belong to the links of the last round, not to these, and so do the
+        // sight's marks of which rays the clusters carry.
         let caps = std::mem::take(&mut h.leaf_cap);
+        let sight = h.sight.take();
         // The acceleration's history is for one set of links: these are not the last
         // preview's, nor those the round's own sweeps will have.
         h.acceleration.restart();
@@ -984,6 +987,7 @@ impl Solver {
             .unwrap_or(sweeps);
         h.acceleration.restart();
         h.leaf_cap = caps;
+        h.sight = sight;
         h.links = LinkTable::default();
         h.links_changed();
         (h.node_b, h.node_corners, h.cluster_b) = saved;

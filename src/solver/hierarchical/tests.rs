@@ -133,7 +133,7 @@ fn push_pull_hands_the_leaves_the_power_the_nodes_gathered() {
     h.pull(&s.mesh, &s.radiosity);
     h.gather(&s.mesh);
     let mesh = &s.mesh;
-    let down = h.cluster_down(mesh);
+    let down = h.cluster_down(&s.radiosity);
     // Gathered: every surface node's mean H (its linear function's mean over it) times
     // its area.
     let mut gathered = 0.0f64;
@@ -420,7 +420,7 @@ fn incremental_against_full(settings: HierarchySettings) {
     );
     h.pull(&mesh, &x);
     h.gather(&mesh);
-    let down = h.cluster_down(&mesh);
+    let down = h.cluster_down(&x);
     let full: Vec<DVec3> = (0..mesh.elements.len())
         .map(|e| {
             h.capped(e, h.leaf_irradiance_linear(&mesh, e, &down))
