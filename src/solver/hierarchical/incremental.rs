@@ -116,8 +116,7 @@ fn position_of(items: &[u32], len: usize) -> Vec<u32> {
 /// The change one receiver gathers.
 enum Change {
     Surface(u32, [Vec3; 3]),
-    /// By direction over far links, and the mean over near ones.
-    Cluster(usize, Octants, Vec3),
+    Cluster(usize, Octants),
 }
 
 impl Hierarchy {
@@ -235,8 +234,7 @@ impl Hierarchy {
         // ancestors' linear H at its centroid and of what its cluster pushes down.
         let mut surface = Vec::new();
         let mut delta = Vec::new();
-        let mut far = vec![Octants::default(); self.clusters.nodes.len()];
-        let mut near = vec![Vec3::ZERO; self.clusters.nodes.len()];
+        let mut cluster_change = vec![Octants::default(); self.clusters.nodes.len()];
         let mut pushed = vec![false; self.clusters.nodes.len()];
         for change in changes {
             match change {
@@ -248,18 +246,17 @@ impl Hierarchy {
                     surface.push(r);
                     delta.push(h);
                 }
-                Change::Cluster(c, o, e) => {
+                Change::Cluster(c, o) => {
                     self.cluster_h[c].merge(&o);
-                    self.cluster_near[c] += e;
-                    (far[c], near[c]) = (o, e);
-                    pushed[c] = o != Octants::default() || e != Vec3::ZERO;
+                    cluster_change[c] = o;
+                    pushed[c] = o != Octants::default();
                 }
             }
         }
         let down = if by_rays {
             ClusterLight::rays(&b_change)
         } else {
-            ClusterLight::facing(&far, &near, &self.clusters)
+            ClusterLight::facing(&cluster_change, &self.clusters)
         };
         // Parents come first: a cluster below one that changed takes its change.
         for c in 1..pushed.len() {
@@ -386,12 +383,11 @@ impl Hierarchy {
                 let cluster = &self.clusters.nodes[c];
                 let at = cluster.centre;
                 let mut o = Octants::default();
-                let mut near = Vec3::ZERO;
                 for l in group {
                     let (d, to_source) = change(l, at);
                     let e = d * l.transfer.factor();
                     if l.transfer.spread().is_infinite() {
-                        near += e;
+                        o.add_around(e * cluster.area / cluster.abs_area.element_sum());
                     } else {
                         let to_source = to_source.unwrap_or_else(|| {
                             (self.centre(mesh, l.source) - at).normalize_or_zero()
@@ -399,7 +395,7 @@ impl Hierarchy {
                         o.add(e, to_source);
                     }
                 }
-                Change::Cluster(c, o, near)
+                Change::Cluster(c, o)
             }
             None => {
                 let at = self.centre(mesh, r);

@@ -292,11 +292,8 @@ pub(super) struct Hierarchy {
     cluster_facing: Vec<Facing>,
     /// The same as the gather reads it: see [`Sender`].
     cluster_send: Vec<Sender>,
-    /// Irradiance a cluster receives over its far links, by direction: see [`Octants`].
+    /// Irradiance a cluster receives, by direction: see [`Octants`].
     cluster_h: Vec<Octants>,
-    /// Irradiance a cluster receives over its near links (ends that overlap), the mean
-    /// over its surfaces.
-    cluster_near: Vec<Vec3>,
     /// What each leaf sees, to weigh what the clusters push down to it (see [`sight`]);
     /// `None` until the first round's links are made, and after the leaves change.
     sight: Option<sight::Sight>,
@@ -377,7 +374,6 @@ impl Hierarchy {
             cluster_facing: vec![Facing::default(); clusters.nodes.len()],
             cluster_send: vec![Sender::default(); clusters.nodes.len()],
             cluster_h: vec![Octants::default(); clusters.nodes.len()],
-            cluster_near: vec![Vec3::ZERO; clusters.nodes.len()],
             sight: None,
             clusters,
             links: LinkTable::default(),
@@ -600,15 +596,14 @@ impl Hierarchy {
         let centre = |id: NodeId| self.centre(mesh, id);
         // Along the leaves' rays the clusters' links carry nothing the leaves read.
         let by_rays = self.leaf_sight().is_some();
-        let sums: Vec<(NodeId, [Vec3; 3], Octants, Vec3)> = self
+        let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
             .links
             .par_groups()
             .map(|(r, group)| {
                 let mut h = [Vec3::ZERO; 3];
                 let mut o = Octants::default();
-                let mut near = Vec3::ZERO;
                 if by_rays && r.cluster().is_some() {
-                    return (r, h, o, near);
+                    return (r, h, o);
                 }
                 if let Some(c) = r.cluster() {
                     let cluster = &self.clusters.nodes[c];
@@ -626,8 +621,9 @@ impl Hierarchy {
                         let e = b * l.transfer.factor();
                         if l.transfer.spread().is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
-                            // carries the mean irradiance over the cluster's surfaces.
-                            near += e;
+                            // carries the mean irradiance over the cluster's surfaces,
+                            // arriving from every side.
+                            o.add_around(e * cluster.area / cluster.abs_area.element_sum());
                         } else {
                             o.add(e, to_source);
                         }
@@ -642,17 +638,16 @@ impl Hierarchy {
                         }
                     }
                 }
-                (r, h, o, near)
+                (r, h, o)
             })
             .collect();
         self.node_h.iter_mut().for_each(|h| *h = [Vec3::ZERO; 3]);
         self.cluster_h
             .iter_mut()
             .for_each(|h| *h = Octants::default());
-        self.cluster_near.iter_mut().for_each(|h| *h = Vec3::ZERO);
-        for (r, h, o, near) in sums {
+        for (r, h, o) in sums {
             match r.cluster() {
-                Some(c) => (self.cluster_h[c], self.cluster_near[c]) = (o, near),
+                Some(c) => self.cluster_h[c] = o,
                 None => self.node_h[r.0 as usize] = h,
             }
         }
@@ -664,7 +659,7 @@ impl Hierarchy {
     fn cluster_down(&self, b: &[DVec3]) -> ClusterLight {
         match self.leaf_sight() {
             Some(_) => ClusterLight::rays(b),
-            None => ClusterLight::facing(&self.cluster_h, &self.cluster_near, &self.clusters),
+            None => ClusterLight::facing(&self.cluster_h, &self.clusters),
         }
     }
 

@@ -78,17 +78,9 @@ pub(super) enum ClusterLight {
 }
 
 impl ClusterLight {
-    /// By facing alone: `far` each cluster's light by direction over its far links,
-    /// `near` the mean irradiance over its surfaces from its near links (ends that
-    /// overlap), which reaches them from every side.
-    pub fn facing(far: &[Octants], near: &[Vec3], clusters: &super::Clusters) -> ClusterLight {
-        let mut down = far.to_vec();
-        for (c, e) in near.iter().enumerate() {
-            if *e != Vec3::ZERO {
-                let cluster = &clusters.nodes[c];
-                down[c].add_around(*e * cluster.area / cluster.abs_area.element_sum());
-            }
-        }
+    /// By facing alone, from `gathered`: each cluster's light by direction.
+    pub fn facing(gathered: &[Octants], clusters: &super::Clusters) -> ClusterLight {
+        let mut down = gathered.to_vec();
         // Parents come first: one pass adds each cluster's ancestors' light to its own.
         for c in 0..down.len() {
             let p = clusters.nodes[c].parent;
