@@ -42,9 +42,6 @@ pub enum Command {
         outside: Outside,
         mesh: MeshSettings,
         solver: SolverSettings,
-        /// Let the worker choose the method by size once the scene is meshed: stochastic
-        /// Jacobi above [`AUTO_STOCHASTIC_ELEMENTS`] elements, `solver.method` below.
-        auto_method: bool,
     },
     /// New solver settings for the current job: the solve restarts on the same mesh.
     SetSettings(SolverSettings),
@@ -219,11 +216,6 @@ pub struct ObjectInfo {
     pub world_from_local: DMat4,
 }
 
-/// Above this many elements an automatic method choice is stochastic Jacobi: on a sky-lit
-/// Sponza (441k elements) it shoots 90 % of the light in 8 s where progressive refinement
-/// needs 117 s (README, measured numbers), because the sky's energy lands everywhere at once.
-pub const AUTO_STOCHASTIC_ELEMENTS: usize = 100_000;
-
 /// The UI's end of the worker.
 pub struct Worker {
     commands: Sender<Command>,
@@ -360,21 +352,11 @@ fn run(
                     outside,
                     mesh,
                     solver,
-                    auto_method,
                 } => {
                     job = None; // free the old scene before loading the next
                     let flag = cancel.lock().unwrap_or_else(|e| e.into_inner()).clone();
                     let result = catch_unwind(AssertUnwindSafe(|| {
-                        load(
-                            id,
-                            &source,
-                            outside,
-                            &mesh,
-                            solver,
-                            auto_method,
-                            &flag,
-                            &send,
-                        )
+                        load(id, &source, outside, &mesh, solver, &flag, &send)
                     }));
                     match result {
                         Ok(Ok(Some(j))) => job = Some(j),
@@ -720,14 +702,12 @@ fn loaded_event(id: u64, scene: &Scene, prepared: &Prepared) -> Event {
 
 /// Loads, meshes and prepares the scene of a `Command::Load` (its fields, then the cancel
 /// flag and the event sink).
-#[allow(clippy::too_many_arguments)]
 fn load(
     id: u64,
     source: &Source,
     outside: Outside,
     mesh: &MeshSettings,
-    mut solver: SolverSettings,
-    auto_method: bool,
+    solver: SolverSettings,
     cancel: &AtomicBool,
     send: &impl Fn(Event),
 ) -> Result<Option<Job>, JobError> {
@@ -747,9 +727,6 @@ fn load(
     let Ok(prepared) = Prepared::new_cancellable(&scene, mesh, cancel) else {
         return Ok(None);
     };
-    if auto_method && prepared.mesh.elements.len() > AUTO_STOCHASTIC_ELEMENTS {
-        solver.method = crate::solver::Method::StochasticJacobi;
-    }
     let solver = prepared
         .solver(solver)
         .map_err(|e| JobError::Solver(Arc::new(e)))?;

@@ -32,7 +32,6 @@ fn load(job: u64, source: &str) -> Command {
             ..Default::default()
         },
         solver: SolverSettings::default(),
-        auto_method: false,
     }
 }
 

@@ -20,9 +20,7 @@ const RHO: f64 = 0.5;
 fn gathered(scene: &Scene, points: &[(DVec3, DVec3)]) -> Vec<Vec3> {
     let options = SolveOptions::default();
     let prepared = Prepared::new(scene, &options.mesh_settings());
-    let mut solver = prepared
-        .solver(options.solver_settings_for(&prepared))
-        .unwrap();
+    let mut solver = prepared.solver(options.solver_settings()).unwrap();
     solver.run(None, radiosity::cancel::never()).unwrap();
     solver.gatherer(options.gather_settings()).at_points(points)
 }

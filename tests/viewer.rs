@@ -623,9 +623,7 @@ fn final_gathered_pixels_see_the_reference_radiosity_at_their_points() {
     let scene = radiosity::scene::builtin::cornell_box();
     let options = radiosity::cli::SolveOptions::default();
     let prepared = radiosity::pipeline::Prepared::new(&scene, &options.mesh_settings());
-    let mut solver = prepared
-        .solver(options.solver_settings_for(&prepared))
-        .unwrap();
+    let mut solver = prepared.solver(options.solver_settings()).unwrap();
     solver.run(None, radiosity::cancel::never()).unwrap();
     let gatherer = solver.gatherer(options.gather_settings());
     let camera = radiosity::view::default_camera(solver.mesh(), &prepared.bvh);

@@ -28,7 +28,6 @@ fn load(job: u64, source: &str, solver: SolverSettings) -> Command {
         outside: Default::default(),
         mesh: mesh(),
         solver,
-        auto_method: false,
     }
 }
 

@@ -25,7 +25,7 @@ pub fn edits(
     quiet: bool,
 ) -> Result<()> {
     let prepared = super::prepare(scene, options, quiet);
-    let mut settings = options.solver_settings_for(&prepared);
+    let mut settings = options.solver_settings();
     settings.step_budget = Duration::from_millis(1);
     let method = settings.method;
     let mut solver = prepared.solver(settings)?;

@@ -301,7 +301,6 @@ pub fn run(cli: Cli) -> Result<()> {
             no_textures,
             orbit,
             final_gather,
-            auto_method: options.method.is_none(),
         }),
         #[cfg(feature = "viewer")]
         Command::Render {

@@ -46,7 +46,7 @@ impl std::str::FromStr for ProbeValue {
 #[derive(Args, Debug, Clone)]
 pub struct SolveOptions {
     /// hierarchical (default), progressive, jacobi, gauss-seidel, stochastic-jacobi or
-    /// direct. When none is given, scenes over 100,000 elements get stochastic-jacobi.
+    /// direct.
     #[arg(long)]
     pub method: Option<Method>,
     /// Stop when the unshot fraction (progressive) or relative residual falls below this.
@@ -168,21 +168,6 @@ impl SolveOptions {
             contact_lines: self.contact_lines,
             shadow_lines: self.shadow_lines,
         }
-    }
-
-    /// The solver settings for the mesh of `prepared`: [`SolveOptions::solver_settings`],
-    /// except that with no `--method` a mesh of more than
-    /// [`AUTO_STOCHASTIC_ELEMENTS`](crate::worker::AUTO_STOCHASTIC_ELEMENTS) elements gets
-    /// stochastic Jacobi, as in the viewer (the hierarchical solver's first refinement
-    /// of Sponza does not finish in minutes yet).
-    pub fn solver_settings_for(&self, prepared: &crate::pipeline::Prepared) -> SolverSettings {
-        let mut s = self.solver_settings();
-        if self.method.is_none()
-            && prepared.mesh.elements.len() > crate::worker::AUTO_STOCHASTIC_ELEMENTS
-        {
-            s.method = Method::StochasticJacobi;
-        }
-        s
     }
 
     /// The solver settings these options ask for.

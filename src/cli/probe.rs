@@ -23,7 +23,7 @@ pub fn probe(
     let pts = read_points(points)?;
     let s = load_scene(scene, options, quiet)?;
     let prepared = prepare(&s, options, quiet);
-    let mut solver = prepared.solver(options.solver_settings_for(&prepared))?;
+    let mut solver = prepared.solver(options.solver_settings())?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;
     let values = match value {
         ProbeValue::Gather => {

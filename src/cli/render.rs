@@ -24,7 +24,7 @@ pub fn render(
 ) -> Result<()> {
     let s = load_scene(scene, options, quiet)?;
     let prepared = prepare(&s, options, quiet);
-    let mut solver = prepared.solver(options.solver_settings_for(&prepared))?;
+    let mut solver = prepared.solver(options.solver_settings())?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;
     if picture.final_gather {
         anyhow::ensure!(

@@ -31,7 +31,7 @@ pub fn solve(
 ) -> Result<()> {
     let s = load_scene(scene, options, quiet)?;
     let prepared = prepare(&s, options, quiet);
-    let mut solver = prepared.solver(options.solver_settings_for(&prepared))?;
+    let mut solver = prepared.solver(options.solver_settings())?;
     let outcome = run_with_progress(&mut solver, options.time_limit, quiet)?;
     let st = solver.stats();
     println!(

@@ -51,9 +51,6 @@ pub struct Options {
     pub orbit: bool,
     /// Start with the final gather on.
     pub final_gather: bool,
-    /// Let the worker pick stochastic Jacobi for very large scenes (the method was not
-    /// chosen on the command line).
-    pub auto_method: bool,
 }
 
 impl Default for Options {
@@ -73,7 +70,6 @@ impl Default for Options {
             no_textures: false,
             orbit: false,
             final_gather: false,
-            auto_method: true,
         }
     }
 }
@@ -119,8 +115,6 @@ pub struct App {
     pub(super) outside: Outside,
     /// The element size field (0: automatic), applied when a scene is meshed.
     pub(super) element_size: f64,
-    /// Let the worker choose the method by size (until a method is chosen in the panel).
-    pub(super) auto_method: bool,
     pub(super) camera: Camera,
     pub(super) display: Display,
     pub(super) auto_exposure: bool,
@@ -162,7 +156,6 @@ impl App {
             mesh_settings: options.mesh.clone(),
             solver_settings: options.solver.clone(),
             outside: options.outside,
-            auto_method: options.auto_method,
             camera: Camera::default(),
             display: Display {
                 wireframe: options.wireframe,
@@ -319,14 +312,6 @@ impl App {
                         *v = Some(version);
                     }
                     s.record(&stats);
-                    if let Some(m) = stats.method
-                        && m != self.solver_settings.method
-                        && self.auto_method
-                    {
-                        // The worker chose the method by size: show it.
-                        self.solver_settings.method = m;
-                        self.status = format!("large scene: solving with {m}");
-                    }
                     s.stats = stats;
                     s.converged = s.stats.converged;
                     if s.snapshot

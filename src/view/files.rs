@@ -201,6 +201,14 @@ impl App {
             self.shots.timed = None;
             self.request_screenshot(path);
         } else if let Some((_, after)) = &self.shots.timed
+            && let Some(started) = s.solve_started
+            && s.error.is_none()
+        {
+            // Not due yet: wake up when it is, as a converged solve sends nothing more
+            // that would repaint the window.
+            let left = (*after - started.elapsed().as_secs_f64()).max(0.0);
+            ctx.request_repaint_after(std::time::Duration::from_secs_f64(left.min(1.0)));
+        } else if let Some((_, after)) = &self.shots.timed
             && s.error.is_some()
             && s.solve_started
                 .is_none_or(|t| t.elapsed().as_secs_f64() >= *after)

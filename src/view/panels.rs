@@ -546,9 +546,6 @@ impl App {
             });
             min_size_ui(ui, &mut a.min_size);
         }
-        if s.method != self.solver_settings.method {
-            self.auto_method = false;
-        }
         if s != self.solver_settings {
             self.solver_settings = s.clone();
             self.worker.send(Command::SetSettings(s));

@@ -117,7 +117,6 @@ impl App {
             outside: self.outside,
             mesh: self.mesh_settings.clone(),
             solver: self.solver_settings.clone(),
-            auto_method: self.auto_method,
         });
         if !self.ambient {
             self.worker.send(Command::SetAmbient(false));

@@ -58,12 +58,13 @@ use warnings::Warnings;
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// The file itself could not be read.
-    #[error("{path}: cannot read the file: {source}")]
+    #[error("{path}: cannot read the file: {error}")]
     Io {
         /// The scene file.
         path: String,
-        /// The operating system's error.
-        source: std::io::Error,
+        /// The operating system's error, in the message rather than as the error's
+        /// `source`, so that a chain printed with `{:#}` names it once.
+        error: std::io::Error,
     },
     /// The file is not valid glTF 2.0 in a way that cannot be worked around (broken
     /// container or JSON, a buffer that cannot be loaded, …).
@@ -124,9 +125,9 @@ pub fn load(path: &Path) -> Result<Scene, LoadError> {
 /// checked between nodes, between images and between the primitives of the texture pass.
 pub fn load_cancellable(path: &Path, cancel: &AtomicBool) -> Result<Scene, LoadError> {
     let shown = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| LoadError::Io {
+    let bytes = std::fs::read(path).map_err(|error| LoadError::Io {
         path: shown.clone(),
-        source,
+        error,
     })?;
     let dir = path.parent().unwrap_or(Path::new(""));
     match std::panic::catch_unwind(AssertUnwindSafe(|| load_bytes(&shown, dir, &bytes, cancel))) {
