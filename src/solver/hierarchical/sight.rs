@@ -31,6 +31,14 @@
 //! what its own walls send. A ray that misses (the sky: the external light's own term) or
 //! hits the back of a single-sided surface brings nothing.
 //!
+//! The mean radiosity the rays estimate is pooled over the leaf and the other leaf
+//! children of its quadtree parent (same surface, side by side): Σ over their carried rays
+//! of B(hit) / Σ of their (16 − s), times the leaf's own (1 − F_s)₊. Sixteen rays alone
+//! left the estimate noisy enough to show in the error: on Sponza's interior bench points
+//! (Gouraud) 12.9 % with each leaf's own rays, 10.6 % pooled, 8.2 % with 64 rays a leaf
+//! (which cost 50 % more solving time). A furnace stays exact: where every B is the same,
+//! so is any pool's mean.
+//!
 //! The rays are cast when a round's links are first used after the leaves changed, and
 //! matched against the surface links again whenever the links change.
 
@@ -63,6 +71,10 @@ struct SightRay {
 /// Every leaf's rays.
 pub(super) struct Sight {
     rays: Vec<SightRay>,
+    /// Per leaf, the leaves its estimate pools rays with: itself and the other leaf
+    /// children of its quadtree parent (`NONE` for the rest; itself alone at a patch's
+    /// root).
+    siblings: Vec<[u32; 4]>,
     /// Per leaf, the form factor its surface links hand it, F_s: what they gather where
     /// every source has B = 1 (empty until [`Sight::set_surface_share`]).
     surface_share: Vec<f32>,
@@ -131,6 +143,7 @@ impl Sight {
             .collect();
         Sight {
             rays,
+            siblings: siblings(mesh),
             surface_share: Vec::new(),
         }
     }
@@ -201,39 +214,74 @@ impl Sight {
             });
     }
 
-    /// Leaves whose rays the clusters carry to any of the `changed` elements (flags by
-    /// element).
+    /// Leaves whose pooled rays (see [`Sight::leaf`]) the clusters carry to any of the
+    /// `changed` elements (flags by element).
     pub fn sees_any(&self, e: usize, changed: &[bool]) -> bool {
-        self.of(e)
-            .iter()
-            .any(|r| r.by_clusters && changed[r.element as usize])
+        self.pool(e).any(|j| {
+            self.of(j)
+                .iter()
+                .any(|r| r.by_clusters && changed[r.element as usize])
+        })
+    }
+
+    /// The leaves leaf `e` pools its rays with, itself included.
+    fn pool(&self, e: usize) -> impl Iterator<Item = usize> + '_ {
+        self.siblings[e]
+            .into_iter()
+            .filter(|&j| j != NONE)
+            .map(|j| j as usize)
+    }
+
+    /// Over leaf `e`'s rays: the sum of B(hit) over those the clusters carry, and how many
+    /// no surface link holds (16 − s).
+    fn carried(&self, e: usize, b: &[Vec3]) -> (Vec3, u32) {
+        let (mut sum, mut held) = (Vec3::ZERO, 0u32);
+        for r in self.of(e) {
+            if r.by_clusters {
+                sum += b[r.element as usize];
+            } else if r.element != NONE {
+                held += 1;
+            }
+        }
+        (sum, RAYS as u32 - held)
     }
 
     /// The irradiance leaf `e` (normal `n`, below cluster `c`) takes from the clusters:
-    /// along its rays ([`ClusterLight::Rays`], with `sight` its rays), or by facing.
+    /// along its rays and its siblings' ([`ClusterLight::Rays`], with `sight` their rays;
+    /// none where no ray of its own is left to the clusters), or by facing.
     pub fn leaf(sight: Option<&Sight>, e: usize, n: Vec3, c: u32, light: &ClusterLight) -> Vec3 {
         match (light, sight) {
             (ClusterLight::Rays(b), Some(sight)) if c != NONE => {
-                let rays = sight.of(e);
-                let (mut sum, mut held) = (Vec3::ZERO, 0u32);
-                for r in rays {
-                    if r.by_clusters {
-                        sum += b[r.element as usize];
-                    } else if r.element != NONE {
-                        held += 1;
-                    }
-                }
-                let rest = RAYS as u32 - held;
-                let share = sight.surface_share.get(e).copied().unwrap_or(0.0);
-                if rest == 0 {
+                if sight.carried(e, b).1 == 0 {
                     return Vec3::ZERO;
                 }
+                let (sum, rest) = sight
+                    .pool(e)
+                    .map(|j| sight.carried(j, b))
+                    .fold((Vec3::ZERO, 0), |(s, n), (sj, nj)| (s + sj, n + nj));
+                let share = sight.surface_share.get(e).copied().unwrap_or(0.0);
                 sum * ((1.0 - share).max(0.0) / rest as f32)
             }
             (ClusterLight::Facing(down), _) if c != NONE => down[c as usize].at(n),
             _ => Vec3::ZERO,
         }
     }
+}
+
+/// Per leaf element, itself and the other leaf children of its quadtree parent (see
+/// [`Sight::siblings`]).
+fn siblings(mesh: &Mesh) -> Vec<[u32; 4]> {
+    let mut siblings: Vec<[u32; 4]> = (0..mesh.elements.len() as u32)
+        .map(|e| [e, NONE, NONE, NONE])
+        .collect();
+    for node in &mesh.nodes {
+        let Some(kids) = node.children else { continue };
+        let leaves = kids.map(|k| mesh.nodes[k as usize].element.unwrap_or(NONE));
+        for e in leaves.into_iter().filter(|&e| e != NONE) {
+            siblings[e as usize] = leaves;
+        }
+    }
+    siblings
 }
 
 /// Per cluster, one past the last cluster of its subtree (clusters are in preorder).
