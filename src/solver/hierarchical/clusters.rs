@@ -33,7 +33,7 @@ pub(in crate::solver) struct Cluster {
     /// coplanar and face one way, 0 for a closed surface).
     pub area_vector: Vec3,
     /// Σ A_i |n_i| (componentwise) over the surfaces below it: what light arriving
-    /// equally from every axis direction reaches (see `Octants::add_around`).
+    /// equally from every axis direction reaches (see `Octants::add_mean`).
     pub abs_area: Vec3,
     /// Largest reflectance channel below it (for the refinement oracle).
     pub reflectance: f32,

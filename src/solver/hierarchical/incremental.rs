@@ -387,7 +387,7 @@ impl Hierarchy {
                     let (d, to_source) = change(l, at);
                     let e = d * l.transfer.factor();
                     if l.transfer.spread().is_infinite() {
-                        o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                        o.add_mean(e, cluster);
                     } else {
                         let to_source = to_source.unwrap_or_else(|| {
                             (self.centre(mesh, l.source) - at).normalize_or_zero()

@@ -104,10 +104,14 @@ impl Octants {
             self.0[Self::face(a, w[a] >= 0.0)] += e * w[a].abs();
         }
     }
-    /// Adds `e` to every face: a surface with normal n then takes e · Σ_a |n_a|.
-    fn add_around(&mut self, e: Vec3) {
+    /// Adds `e`, the mean irradiance over `cluster`'s surfaces, arriving from every side
+    /// (a near link's, whose ends overlap): every face gets e · A / Σ_a (Σ A_i |n_i|)_a,
+    /// so a surface with normal n takes that times Σ_a |n_a|, and the area-weighted mean
+    /// over the cluster's surfaces is e.
+    fn add_mean(&mut self, e: Vec3, cluster: &clusters::Cluster) {
+        let per_face = e * cluster.area / cluster.abs_area.element_sum();
         for f in &mut self.0 {
-            *f += e;
+            *f += per_face;
         }
     }
     fn merge(&mut self, o: &Octants) {
@@ -621,9 +625,8 @@ impl Hierarchy {
                         let e = b * l.transfer.factor();
                         if l.transfer.spread().is_infinite() {
                             // Ends that overlap (`transfer::overlap`): a sampled near link
-                            // carries the mean irradiance over the cluster's surfaces,
-                            // arriving from every side.
-                            o.add_around(e * cluster.area / cluster.abs_area.element_sum());
+                            // carries the mean irradiance over the cluster's surfaces.
+                            o.add_mean(e, cluster);
                         } else {
                             o.add(e, to_source);
                         }

@@ -252,13 +252,18 @@ impl Sight {
     pub fn leaf(sight: Option<&Sight>, e: usize, n: Vec3, c: u32, light: &ClusterLight) -> Vec3 {
         match (light, sight) {
             (ClusterLight::Rays(b), Some(sight)) if c != NONE => {
-                if sight.carried(e, b).1 == 0 {
+                let (mut sum, mut rest, mut own) = (Vec3::ZERO, 0u32, 0u32);
+                for j in sight.pool(e) {
+                    let (s, n) = sight.carried(j, b);
+                    sum += s;
+                    rest += n;
+                    if j == e {
+                        own = n;
+                    }
+                }
+                if own == 0 {
                     return Vec3::ZERO;
                 }
-                let (sum, rest) = sight
-                    .pool(e)
-                    .map(|j| sight.carried(j, b))
-                    .fold((Vec3::ZERO, 0), |(s, n), (sj, nj)| (s + sj, n + nj));
                 let share = sight.surface_share.get(e).copied().unwrap_or(0.0);
                 sum * ((1.0 - share).max(0.0) / rest as f32)
             }

@@ -495,7 +495,7 @@ fn with_cluster(
 /// surface receiver takes it at its three quadrature points; a receiving cluster the mean
 /// over its sample patches' centroids (also drawn by area, so the mean estimates the
 /// irradiance averaged over its surfaces), which reaches its surfaces from every
-/// direction alike (see `Octants::add_around`). `spread` is infinite: no kernel bound
+/// direction alike (see `Octants::add_mean`). `spread` is infinite: no kernel bound
 /// holds between overlapping ends.
 fn near_transfer(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transfer {
     // The source's samples and the weight A_S / (n A_j) of each.
