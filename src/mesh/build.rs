@@ -354,8 +354,9 @@ fn element_size(
     }
 }
 
-/// Stage 5, emit: each source cut into patches no longer than [`PATCH_PER_ELEMENT`]
-/// element sizes (longest-edge bisection), one per side (front, then back for
+/// Stage 5, emit: each source cut into patches by longest-edge bisection (no longer than
+/// [`PATCH_PER_ELEMENT`] element sizes, needles cut until their elements are at most 1.5
+/// sizes long: `split_patches`), one per side (front, then back for
 /// double-sided materials), each the root of an element quadtree deep enough for
 /// the element size; then the display mesh and the per-triangle patch ranges. Looks at
 /// `cancel` every [`SOURCES_PER_CHECK`] sources.
@@ -381,14 +382,13 @@ fn emit(input: Input, sized: Sized, cancel: &AtomicBool) -> Result<Mesh, Cancell
         cut_edges,
         textures: Vec::new(),
     };
-    let patch_len = (element_size * PATCH_PER_ELEMENT) as f32;
     let mut pieces = Vec::new();
     for (k, s) in sources.iter().enumerate() {
         if k % SOURCES_PER_CHECK == 0 {
             check(cancel)?;
         }
         pieces.clear();
-        split_patches(s.verts, patch_len, &mut pieces);
+        split_patches(s.verts, element_size, &mut pieces);
         for side in 0..if s.double_sided { 2 } else { 1 } {
             for p in &pieces {
                 let verts = if side == 0 { *p } else { [p[0], p[2], p[1]] };

@@ -2,8 +2,9 @@
 //!
 //! Substructuring (Cohen, Greenberg, Immel & Brock, "An efficient radiosity approach for
 //! realistic image synthesis", 1986): each input triangle is cut into *patches* by
-//! longest-edge bisection until no edge exceeds the patch size (so slivers become chains of
-//! short patches instead of huge quadtrees), and each patch is the root of a quadtree of
+//! longest-edge bisection until no edge exceeds the patch size and no element of a needle
+//! is much longer than the element size (so slivers become chains of short patches instead
+//! of huge quadtrees or elements as long as themselves), and each patch is the root of a quadtree of
 //! *elements* made by midpoint subdivision. Patches shoot light, elements receive it;
 //! the leaves of a patch's quadtree are stored contiguously so `Patch::elements` is a range.
 //!
