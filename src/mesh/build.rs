@@ -355,10 +355,9 @@ fn element_size(
 }
 
 /// Stage 5, emit: each source cut into patches by longest-edge bisection (no longer than
-/// [`PATCH_PER_ELEMENT`] element sizes, needles cut until their elements are at most 1.5
-/// sizes long: `split_patches`), one per side (front, then back for
-/// double-sided materials), each the root of an element quadtree deep enough for
-/// the element size; then the display mesh and the per-triangle patch ranges. Looks at
+/// [`PATCH_PER_ELEMENT`] element sizes, needles cut by their length: `split_patches`),
+/// one per side (front, then back for double-sided materials), each the root of an
+/// element quadtree deep enough for the element size; then the display mesh and the per-triangle patch ranges. Looks at
 /// `cancel` every [`SOURCES_PER_CHECK`] sources.
 fn emit(input: Input, sized: Sized, cancel: &AtomicBool) -> Result<Mesh, Cancelled> {
     let Sized {

@@ -4,9 +4,10 @@
 //! realistic image synthesis", 1986): each input triangle is cut into *patches* by
 //! longest-edge bisection until no edge exceeds the patch size and no element of a needle
 //! is much longer than the element size (so slivers become chains of short patches instead
-//! of huge quadtrees or elements as long as themselves), and each patch is the root of a quadtree of
-//! *elements* made by midpoint subdivision. Patches shoot light, elements receive it;
-//! the leaves of a patch's quadtree are stored contiguously so `Patch::elements` is a range.
+//! of huge quadtrees or elements as long as themselves), and each patch is the root of a
+//! quadtree of *elements* made by midpoint subdivision. Patches shoot light, elements
+//! receive it; the leaves of a patch's quadtree are stored contiguously so
+//! `Patch::elements` is a range.
 //!
 //! Geometry is re-centred: `Mesh::origin` (f64, world) is subtracted from every position
 //! before it is stored in f32, so a kilometre-sized scene a thousand kilometres from the

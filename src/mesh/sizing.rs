@@ -182,6 +182,7 @@ pub(super) fn choose_element_size(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::shortest_altitude;
 
     /// Per patch, the longest edge of its elements (its quadtree at `depth_for`) and its
     /// width (altitude on its longest edge), over the element size.
@@ -191,11 +192,10 @@ mod tests {
         pieces
             .iter()
             .map(|p| {
-                let len = longest_edge(p).1 as f64;
                 let depth = depth_for(area(p), size);
                 (
-                    len / f64::from(1u32 << depth) / size,
-                    2.0 * area(p) as f64 / len / size,
+                    longest_edge(p).1 as f64 / f64::from(1u32 << depth) / size,
+                    shortest_altitude(p) as f64 / size,
                 )
             })
             .collect()
