@@ -122,8 +122,14 @@ fn a_closed_box_at_rho_0999_converges_in_few_sweeps_and_keeps_the_power_balance(
     //   E / (1 − ρ), the radiosity of a surface surrounded by the brightest possible
     //   scene; 1 % is allowed for what the caps do not bound (a linear transfer's
     //   negative part near a corner, a source's linear fit above its brightest leaf) and
-    //   the f32 sums at a thousandfold amplification. The balance itself is lost there:
-    //   what the coarse links miss, amplified a thousandfold, leaves 2 % of the power.
+    //   the f32 sums at a thousandfold amplification.
+    // - The balance holds there too, within 2 %: the light the coarse links leave to the
+    //   clusters comes along each leaf's rays (`sight`), whose share, one hemisphere less
+    //   what the surface links hand it, makes every leaf's form factors sum to one in a
+    //   closed box. Measured (2026-12-05): 1.005. It was 0.017 while the links from
+    //   clusters carried their light by the cluster model, and 0.68 while a leaf whose own
+    //   16 rays all met surface links took nothing from the clusters: at a thousandfold
+    //   amplification, a form-factor sum short by 5·10⁻⁴ on average.
     let rho = 0.999f32;
     let mut scene = builtin::furnace_box(DVec3::ZERO, DVec3::ONE, rho, 0.0);
     scene.materials.push(Material::emitter(
@@ -166,13 +172,12 @@ fn a_closed_box_at_rho_0999_converges_in_few_sweeps_and_keeps_the_power_balance(
         }
         let top = b.iter().map(|v| v.x as f64).fold(0.0, f64::max);
         assert!(top <= bound * 1.01, "{max_links} links: B up to {top}");
-        if refined {
-            let want = emitted * bound;
-            assert!(
-                (power / want - 1.0).abs() < 0.01,
-                "Σ A B = {power}, the balance says {want}"
-            );
-        }
+        let want = emitted * bound;
+        let tolerance = if refined { 0.01 } else { 0.02 };
+        assert!(
+            (power / want - 1.0).abs() < tolerance,
+            "{max_links} links: Σ A B = {power}, the balance says {want}"
+        );
     }
 }
 

@@ -398,9 +398,11 @@ impl Hierarchy {
                 Change::Cluster(c, o)
             }
             None => {
+                // As the full gather: along the leaves' rays, not from the clusters' links.
+                let by_rays = self.leaf_sight().is_some();
                 let at = self.centre(mesh, r);
                 let mut h = [Vec3::ZERO; 3];
-                for l in group {
+                for l in group.filter(|l| !(by_rays && l.source.cluster().is_some())) {
                     let d = change(l, at).0;
                     let c = l.transfer.corners();
                     for k in 0..3 {

@@ -598,7 +598,8 @@ impl Hierarchy {
     /// direction for a cluster).
     fn gather(&mut self, mesh: &Mesh) {
         let centre = |id: NodeId| self.centre(mesh, id);
-        // Along the leaves' rays the clusters' links carry nothing the leaves read.
+        // Along the leaves' rays the links with a cluster at either end carry nothing the
+        // leaves read (see [`sight`]).
         let by_rays = self.leaf_sight().is_some();
         let sums: Vec<(NodeId, [Vec3; 3], Octants)> = self
             .links
@@ -633,7 +634,10 @@ impl Hierarchy {
                     }
                 } else {
                     let at = centre(r);
-                    for l in group {
+                    for l in group
+                        .iter()
+                        .filter(|l| !(by_rays && l.source.cluster().is_some()))
+                    {
                         let b = self.source_b(l, at);
                         let c = l.transfer.corners();
                         for k in 0..3 {
@@ -735,7 +739,7 @@ impl Hierarchy {
                 &self.parent[..],
                 &self.node_patch[..],
             );
-            sight.match_links(mesh, &self.links, nodes, &self.clusters);
+            sight.match_links(mesh, &self.links, nodes);
         }
         let ones = vec![DVec3::ONE; mesh.elements.len()];
         self.pull(mesh, &ones);
