@@ -526,12 +526,12 @@ fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
     j.version += 1;
     let radiosity = j.solver.display_radiosity(j.ambient);
     let (rho, e) = (j.solver.reflectance(), j.solver.emission());
-    let irradiance = crate::solver::irradiance(&radiosity, rho, e);
+    let irradiance = crate::solver::irradiance(&radiosity, &rho, &e);
     let mesh = j.solver.mesh();
     let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
     let (reflectance, emission) = match j.surfaces.take() {
         Some((r, m)) if *r == *rho && *m == *e => (r, m),
-        _ => (Arc::from(rho), Arc::from(e)),
+        _ => (Arc::from(&*rho), Arc::from(&*e)),
     };
     j.surfaces = Some((Arc::clone(&reflectance), Arc::clone(&emission)));
     j.snapshot_cost = start.elapsed();
@@ -667,10 +667,11 @@ fn export(
     let radiosity = j.solver.radiosity();
     let mesh = j.solver.mesh();
     let ev = ev.or_else(|| crate::exposure::auto_exposure(mesh, &radiosity).map(|a| a.0));
+    let (reflectance, emission) = (j.solver.reflectance(), j.solver.emission());
     let bake = crate::export::Bake {
         radiosity: &radiosity,
-        reflectance: j.solver.reflectance(),
-        emission: j.solver.emission(),
+        reflectance: &reflectance,
+        emission: &emission,
         exposure: 2f32.powf(ev.unwrap_or(0.0)),
         tonemap: tonemap.unwrap_or_default(),
     };

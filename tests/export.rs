@@ -44,8 +44,8 @@ fn bake(scene: &Scene, solver: &Solver, path: &Path) {
         solver.mesh(),
         &Bake {
             radiosity: &radiosity,
-            reflectance: solver.reflectance(),
-            emission: solver.emission(),
+            reflectance: &solver.reflectance(),
+            emission: &solver.emission(),
             exposure: 2f32.powf(ev),
             tonemap: Default::default(),
         },

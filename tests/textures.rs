@@ -56,10 +56,11 @@ fn solve_and_render(
     let mut solver = prepared.solver(SolverSettings::default()).unwrap();
     common::converge(&mut solver);
     let radiosity = solver.radiosity();
+    let (reflectance, emission) = (solver.reflectance(), solver.emission());
     let solution = Solution {
         radiosity: &radiosity,
-        reflectance: solver.reflectance(),
-        emission: solver.emission(),
+        reflectance: &reflectance,
+        emission: &emission,
     };
     let display = Display {
         ev: 0.0,

@@ -65,10 +65,11 @@ pub fn render(
         return Ok(());
     }
     let radiosity = solver.radiosity();
+    let (reflectance, emission) = (solver.reflectance(), solver.emission());
     let solution = Solution {
         radiosity: &radiosity,
-        reflectance: solver.reflectance(),
-        emission: solver.emission(),
+        reflectance: &reflectance,
+        emission: &emission,
     };
     let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &radiosity, picture);
     let (image, adapter) = render_image(

@@ -68,10 +68,11 @@ pub fn solve(
         let mesh = solver.mesh();
         let radiosity = solver.radiosity();
         let ev = crate::exposure::auto_exposure(mesh, &radiosity).map_or(0.0, |a| a.0);
+        let (reflectance, emission) = (solver.reflectance(), solver.emission());
         let bake = Bake {
             radiosity: &radiosity,
-            reflectance: solver.reflectance(),
-            emission: solver.emission(),
+            reflectance: &reflectance,
+            emission: &emission,
             exposure: 2f32.powf(ev),
             tonemap: Default::default(),
         };

@@ -84,6 +84,11 @@ impl Default for MeshSettings {
 /// dense direct reference (O(N³)) to seconds.
 pub const DEFAULT_ELEMENTS: usize = 3000;
 
+/// The least opacity a patch is given ([`Mesh::opacity`]): a fully clear pane still
+/// reflects a thousandth, so that its irradiance H = (B − E) / ρ, which the display draws
+/// under its texture, stays defined.
+pub const MIN_OPACITY: f32 = 1e-3;
+
 /// A shooter: a piece of one input triangle, seen from one side.
 #[derive(Clone, Debug)]
 pub struct Patch {
@@ -274,6 +279,27 @@ impl Mesh {
     /// Total area of all patches (both sides of double-sided surfaces counted), m².
     pub fn total_area(&self) -> f64 {
         self.patches.iter().map(|p| p.area as f64).sum()
+    }
+
+    /// The share of patch `patch`'s area that reflects and emits: 1 − τ, with τ the
+    /// transmittance of its scene triangle (an alpha cut-out's uncovered share, glass's
+    /// transmission), at least [`MIN_OPACITY`]. A shadow ray passes such a triangle with
+    /// τ (`Bvh::transmittance`), and the unbiased reference lets a path through with
+    /// probability τ and reflects it otherwise; so the power a patch sends per unit of
+    /// its area is (1 − τ) times the radiosity of its covered part. The solvers transport
+    /// that (their ρ and E are the patch's times its opacity); the radiosity a probe or
+    /// the display reports at a point is the covered part's.
+    pub fn opacity(&self, patch: &Patch) -> f32 {
+        let tau = self
+            .transmittance
+            .get(patch.scene_triangle as usize)
+            .copied()
+            .unwrap_or(0.0);
+        if tau.is_finite() {
+            (1.0 - tau).clamp(MIN_OPACITY, 1.0)
+        } else {
+            1.0
+        }
     }
 
     /// Offset used to lift ray endpoints off surfaces ([`Frame::epsilon`]).

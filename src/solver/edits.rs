@@ -39,8 +39,10 @@ impl Solver {
                 continue;
             };
             edited.push(edit.patch);
-            let rho = sanitize(edit.reflectance).min(Vec3::splat(0.999));
-            let emission = sanitize(edit.emission);
+            // Transported as at the start (`Mesh::opacity`).
+            let opacity = mesh.opacity(patch);
+            let rho = sanitize(edit.reflectance).min(Vec3::splat(0.999)) * opacity;
+            let emission = sanitize(edit.emission) * opacity;
             for i in patch.elements.clone() {
                 let i = i as usize;
                 let old_rho = self.reflectance[i];

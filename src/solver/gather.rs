@@ -339,9 +339,20 @@ impl Gatherer {
         &self.bvh
     }
 
-    /// Element `e`'s reflectance ρ and emitted radiosity E, as solved with.
+    /// Element `e`'s reflectance ρ and emitted radiosity E on its covered part (those it
+    /// was solved with over its opacity, see `Mesh::opacity`).
     pub fn surface(&self, e: u32) -> (Vec3, Vec3) {
-        (self.reflectance[e as usize], self.emission[e as usize])
+        let opacity = self.opacity(e);
+        (
+            self.reflectance[e as usize] / opacity,
+            self.emission[e as usize] / opacity,
+        )
+    }
+
+    /// The opacity of element `e`'s patch (`Mesh::opacity`).
+    fn opacity(&self, e: u32) -> f32 {
+        let patch = self.mesh.elements[e as usize].patch;
+        self.mesh.opacity(&self.mesh.patches[patch as usize])
     }
 
     /// B at each world-space point with the normal of the side asked about (as `probe`
@@ -363,9 +374,10 @@ impl Gatherer {
             .collect()
     }
 
-    /// B at point `x` (mesh frame) of element `e`.
+    /// B at point `x` (mesh frame) of element `e`: its covered part's, as a probe reports
+    /// it (the near field's sources send the solved B, their opacity times that).
     pub fn at(&self, e: u32, x: Vec3) -> Vec3 {
-        self.at_depth(e, x, 0)
+        self.at_depth(e, x, 0) / self.opacity(e)
     }
 
     /// [`Gatherer::at`] at `depth` levels of the near field below the point asked about:

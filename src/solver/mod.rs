@@ -53,6 +53,7 @@ use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use source_term::external_factor;
+use std::borrow::Cow;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -90,10 +91,15 @@ pub struct Solver {
     cache_used: usize,
     /// Form-factor rows per element: (patch, F_ip), for gathering and direct.
     rows: Vec<Sparse>,
-    /// Reflectance per element (its patch's, or an edit's).
+    /// Reflectance per element (its patch's, or an edit's), times its opacity: what the
+    /// solve transports (see `Mesh::opacity`).
     reflectance: Vec<Vec3>,
-    /// Emitted radiosity E per element (its patch's, or an edit's).
+    /// Emitted radiosity E per element (its patch's, or an edit's), times its opacity.
     emission: Vec<Vec3>,
+    /// Opacity per element (`Mesh::opacity`); empty where every element is opaque. The
+    /// solve's B, ρ and E are per unit of an element's area; what `radiosity`,
+    /// `reflectance` and `emission` report is its covered part's, over its opacity.
+    opacity: Vec<f32>,
     /// First-bounce irradiance factor h_i of external light, so E'_i = E_i + ρ_i h_i.
     external_in: Vec<Vec3>,
     /// Progressive: radiosity gathered so far before reflection, H_i = Σ F_ip ΔB̄_p, so that
@@ -177,16 +183,27 @@ impl Solver {
                 limit: MAX_DIRECT_PATCHES * n,
             });
         }
-        let reflectance = mesh
+        // What the elements transport: the covered share of a cut-out's area reflects
+        // and emits (`Mesh::opacity`).
+        let opacity: Vec<f32> = mesh
             .elements
             .iter()
-            .map(|e| mesh.patches[e.patch as usize].reflectance)
+            .map(|e| mesh.opacity(&mesh.patches[e.patch as usize]))
             .collect();
-        let emission = mesh
+        let (reflectance, emission) = mesh
             .elements
             .iter()
-            .map(|e| mesh.patches[e.patch as usize].emission)
-            .collect();
+            .zip(&opacity)
+            .map(|(e, o)| {
+                let patch = &mesh.patches[e.patch as usize];
+                (patch.reflectance * *o, patch.emission * *o)
+            })
+            .unzip();
+        let opacity = if opacity.iter().any(|&o| o < 1.0) {
+            opacity
+        } else {
+            Vec::new()
+        };
         Ok(Solver {
             emission,
             external_in: vec![Vec3::ZERO; n],
@@ -202,6 +219,7 @@ impl Solver {
             cache_used: 0,
             rows: Vec::new(),
             reflectance,
+            opacity,
             pending: None,
             hierarchy: None,
             stats: Stats {
@@ -232,7 +250,15 @@ impl Solver {
 
     /// Current radiosity B per element (W/m² per channel).
     pub fn radiosity(&self) -> Vec<Vec3> {
-        self.radiosity.iter().map(|b| b.as_vec3()).collect()
+        self.covered(self.radiosity.iter().map(|b| b.as_vec3()))
+    }
+
+    /// `values` per element over each element's opacity: its covered part's.
+    fn covered(&self, values: impl Iterator<Item = Vec3>) -> Vec<Vec3> {
+        if self.opacity.is_empty() {
+            return values.collect();
+        }
+        values.zip(&self.opacity).map(|(v, o)| v / *o).collect()
     }
 
     /// Current radiosity B per element in the f64 it is accumulated in.
@@ -252,7 +278,8 @@ impl Solver {
             self.bvh.clone(),
             self.external.clone(),
             gather::Solution {
-                radiosity: self.radiosity(),
+                // As transported: the gather reports a point's covered part itself.
+                radiosity: self.radiosity.iter().map(|b| b.as_vec3()).collect(),
                 reflectance: self.reflectance.clone(),
                 emission: self.emission.clone(),
             },
@@ -275,14 +302,23 @@ impl Solver {
         self.phase == Phase::Done
     }
 
-    /// Reflectance ρ per element, as solved with (after edits).
-    pub fn reflectance(&self) -> &[Vec3] {
-        &self.reflectance
+    /// Reflectance ρ per element, as solved with (after edits), of its covered part.
+    pub fn reflectance(&self) -> Cow<'_, [Vec3]> {
+        self.covered_slice(&self.reflectance)
     }
 
-    /// Emitted radiosity E per element, as solved with (after edits).
-    pub fn emission(&self) -> &[Vec3] {
-        &self.emission
+    /// Emitted radiosity E per element, as solved with (after edits), of its covered part.
+    pub fn emission(&self) -> Cow<'_, [Vec3]> {
+        self.covered_slice(&self.emission)
+    }
+
+    /// [`Solver::covered`] without a copy where every element is opaque.
+    fn covered_slice<'a>(&self, values: &'a [Vec3]) -> Cow<'a, [Vec3]> {
+        if self.opacity.is_empty() {
+            Cow::Borrowed(values)
+        } else {
+            Cow::Owned(self.covered(values.iter().copied()))
+        }
     }
 
     /// Radiosity for display: B plus, when `with_ambient`, ρ times the ambient term.
@@ -292,11 +328,12 @@ impl Solver {
         } else {
             Vec3::ZERO
         };
-        self.radiosity
-            .iter()
-            .zip(&self.reflectance)
-            .map(|(b, rho)| b.as_vec3() + *rho * ambient)
-            .collect()
+        self.covered(
+            self.radiosity
+                .iter()
+                .zip(&self.reflectance)
+                .map(|(b, rho)| b.as_vec3() + *rho * ambient),
+        )
     }
 
     /// Does one short unit of work (about `step_budget` of wall time, less if it converges)

@@ -49,6 +49,9 @@ impl Solver {
         self.source = remap(&self.source, moved, n);
         self.reflectance = remap(&self.reflectance, moved, n);
         self.emission = remap(&self.emission, moved, n);
+        if !self.opacity.is_empty() {
+            self.opacity = remap(&self.opacity, moved, n);
+        }
         self.external_in = remap(&self.external_in, moved, n);
     }
 

@@ -117,7 +117,9 @@ pub fn trace_chunk(
                 let j = j as usize;
                 let absorbed = power * (1.0 - tau);
                 out.arrived += absorbed.x + absorbed.y + absorbed.z;
-                let add = reflectance[j].as_dvec3() * absorbed / mesh.elements[j].area as f64;
+                // Its covered share takes `absorbed` and reflects ρ (1 − τ) · power per unit
+                // of the element's area: `reflectance` holds ρ (1 − τ) (`Mesh::opacity`).
+                let add = reflectance[j].as_dvec3() * power / mesh.elements[j].area as f64;
                 if add.max_element() > 0.0 {
                     out.added.push((j as u32, add));
                 }

@@ -254,7 +254,7 @@ impl Hierarchy {
             }
         }
         let down = if by_rays {
-            ClusterLight::rays(&b_change)
+            ClusterLight::rays(&b_change, &self.element_cover)
         } else {
             ClusterLight::facing(&cluster_change, &self.clusters)
         };

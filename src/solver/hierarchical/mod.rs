@@ -308,6 +308,10 @@ pub(super) struct Hierarchy {
     /// stream the elements themselves (72 bytes each) to find them.
     element_area: Vec<f32>,
     element_cluster: Vec<u32>,
+    /// Per element, 1 / its opacity (`Mesh::opacity`): what turns the radiosity it sends
+    /// into its covered part's, which a leaf's ray that stops there brings; empty where
+    /// every element is opaque.
+    element_cover: Vec<f32>,
     /// Per element, the factor its gathered H is scaled by so that its links' form
     /// factors sum to at most 1 (see [`Hierarchy::conservation_caps`]); empty or stale
     /// (another length) while a refinement round changes the links.
@@ -393,6 +397,7 @@ impl Hierarchy {
             element_node: Vec::new(),
             element_area: Vec::new(),
             element_cluster: Vec::new(),
+            element_cover: Vec::new(),
             leaf_cap: Vec::new(),
             basis: None,
             by_source: None,
@@ -457,6 +462,16 @@ impl Hierarchy {
             }
         }
         self.element_area = mesh.elements.iter().map(|e| e.area).collect();
+        let opacity: Vec<f32> = mesh
+            .elements
+            .iter()
+            .map(|e| mesh.opacity(&mesh.patches[e.patch as usize]))
+            .collect();
+        self.element_cover = if opacity.iter().any(|&o| o < 1.0) {
+            opacity.iter().map(|o| 1.0 / o).collect()
+        } else {
+            Vec::new()
+        };
         let above = &self.clusters.patch_parent;
         self.element_cluster = mesh
             .elements
@@ -661,11 +676,11 @@ impl Hierarchy {
     }
 
     /// The light of the links to clusters, laid out for the leaves: along their rays
-    /// where the sight fits the leaves (from the elements' radiosity `b`), by facing
-    /// otherwise (see [`sight`]).
+    /// where the sight fits the leaves (from the elements' radiosity `b`, a ray taking its
+    /// hit's covered part's: see `Mesh::opacity`), by facing otherwise (see [`sight`]).
     fn cluster_down(&self, b: &[DVec3]) -> ClusterLight {
         match self.leaf_sight() {
-            Some(_) => ClusterLight::rays(b),
+            Some(_) => ClusterLight::rays(b, &self.element_cover),
             None => ClusterLight::facing(&self.cluster_h, &self.clusters),
         }
     }
@@ -715,7 +730,8 @@ impl Hierarchy {
     }
 
     /// Sets each leaf's conservation cap, 1 / max(1, T), where T is the total form factor
-    /// its links hand it: the irradiance it gathers when every source has B = 1. A point
+    /// its links hand it: the irradiance it gathers when every source's covered part has
+    /// B = 1 (a cut-out sends its opacity, `Mesh::opacity`). A point
     /// sees at most its whole hemisphere, so T ≤ 1 (T = 1 inside a closed scene). Links
     /// that refinement left coarse can deliver more: a linear transfer extrapolated from
     /// its quadrature points into a corner the receiver shares with the source, a
@@ -741,7 +757,15 @@ impl Hierarchy {
             );
             sight.match_links(mesh, &self.links, nodes);
         }
-        let ones = vec![DVec3::ONE; mesh.elements.len()];
+        // Every surface's covered part at B = 1: an element then sends its opacity
+        // (`Mesh::opacity`), and a cut-out's link counts its covered share of the
+        // hemisphere, the light through it the rest.
+        let ones: Vec<DVec3> = if self.element_cover.is_empty() {
+            vec![DVec3::ONE; mesh.elements.len()]
+        } else {
+            let opacity = |c: &f32| DVec3::splat(1.0 / *c as f64);
+            self.element_cover.iter().map(opacity).collect()
+        };
         self.pull(mesh, &ones);
         self.gather(mesh);
         let share = (0..mesh.elements.len())

@@ -118,9 +118,14 @@ impl ClusterLight {
         ClusterLight::Facing(down)
     }
 
-    /// Along the leaves' rays, from the elements' radiosity `b`.
-    pub fn rays(b: &[DVec3]) -> ClusterLight {
-        ClusterLight::Rays(b.iter().map(|v| v.as_vec3()).collect())
+    /// Along the leaves' rays, from the elements' radiosity `b`, each scaled by its
+    /// `cover` (none where empty).
+    pub fn rays(b: &[DVec3], cover: &[f32]) -> ClusterLight {
+        ClusterLight::Rays(if cover.is_empty() {
+            b.iter().map(|v| v.as_vec3()).collect()
+        } else {
+            b.iter().zip(cover).map(|(v, c)| v.as_vec3() * *c).collect()
+        })
     }
 }
 
@@ -144,12 +149,8 @@ impl Sight {
                     let u = (i + unit(h)) / 4.0;
                     let v = (j + unit(hash(h))) / 4.0;
                     let w = cosine_direction(n, basis, u, v);
-                    let element = bvh
-                        .closest_hit(from, w, 0.0, f32::INFINITY, own)
-                        .and_then(|hit| mesh.element_at(hit.triangle, from + w * hit.t, -w))
-                        .unwrap_or(NONE);
                     SightRay {
-                        element,
+                        element: first_stop(mesh, bvh, (from, w, own), hash(h ^ 0x7A55)),
                         by_clusters: false,
                     }
                 })
@@ -274,6 +275,35 @@ impl Sight {
             _ => Vec3::ZERO,
         }
     }
+}
+
+/// Most cut-outs a leaf's ray passes before it is taken to stop.
+const MAX_PASSES: usize = 16;
+
+/// The element where the ray from `from` along `w` (leaving triangle `own`) stops, or
+/// `NONE` where it leaves the scene or meets the back of a single-sided surface. It passes
+/// a triangle of transmittance τ (an alpha cut-out's uncovered share, glass) with
+/// probability τ, drawn from `draw`, as the unbiased reference's paths do; where it stops
+/// on one it brings the covered part's radiosity (`ClusterLight::rays`).
+fn first_stop(mesh: &Mesh, bvh: &Bvh, (from, w, own): (Vec3, Vec3, u32), mut draw: u64) -> u32 {
+    let (mut origin, mut skip) = (from, own);
+    for _ in 0..MAX_PASSES {
+        let Some(hit) = bvh.closest_hit(origin, w, 0.0, f32::INFINITY, skip) else {
+            return NONE;
+        };
+        let y = origin + w * hit.t;
+        let tau = mesh
+            .transmittance
+            .get(hit.triangle as usize)
+            .copied()
+            .unwrap_or(0.0);
+        if tau > 0.0 && unit(draw) < tau {
+            (origin, skip, draw) = (y, hit.triangle, hash(draw));
+            continue;
+        }
+        return mesh.element_at(hit.triangle, y, -w).unwrap_or(NONE);
+    }
+    NONE
 }
 
 /// Per leaf element, itself and the other leaf children of its quadtree parent (see
