@@ -43,7 +43,12 @@ pub struct Hit {
     pub triangle: u32,
     pub u: f32,
     pub v: f32,
+    /// The hit triangle's transmittance (0 = opaque).
+    pub transmittance: f32,
 }
+
+/// Most cut-outs [`Bvh::stopping_hit`] lets a ray pass before it takes the ray to stop.
+pub const MAX_PASSES: usize = 64;
 
 /// Bounding volume hierarchy over a fixed set of triangles.
 #[derive(Clone, Default)]
@@ -265,11 +270,37 @@ impl Bvh {
                         triangle: tri.id,
                         u,
                         v,
+                        transmittance: tri.transmittance,
                     });
                 }
             }
         }
         best
+    }
+
+    /// The first surface along `origin + t·direction` (t > 0) that stops the ray, leaving
+    /// triangle `skip`, and the point where it stops. A triangle of transmittance τ > 0 (an
+    /// alpha cut-out's uncovered share, glass) lets the ray through where `pass(τ)` says
+    /// so, a draw the caller makes true with probability τ: the ray then goes on from
+    /// there, past that triangle. `None` where the ray leaves the scene, or passes
+    /// [`MAX_PASSES`] cut-outs.
+    pub fn stopping_hit(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        skip: u32,
+        mut pass: impl FnMut(f32) -> bool,
+    ) -> Option<(Vec3, Hit)> {
+        let (mut origin, mut skip) = (origin, skip);
+        for _ in 0..MAX_PASSES {
+            let hit = self.closest_hit(origin, direction, 0.0, f32::INFINITY, skip)?;
+            let y = origin + direction * hit.t;
+            if hit.transmittance <= 0.0 || !pass(hit.transmittance) {
+                return Some((y, hit));
+            }
+            (origin, skip) = (y, hit.triangle);
+        }
+        None
     }
 
     /// The children of interior `node` as (nearer, farther) along `direction` from `origin`,
@@ -521,5 +552,37 @@ mod tests {
             [u32::MAX; 2],
         );
         assert!((t - 0.125).abs() < 1e-6, "0.5 × 0.25 expected, got {t}");
+    }
+
+    /// Two cut-outs (τ = 0.5 at z = 0, 0.25 at z = 0.5) before an opaque quad at z = 1: a
+    /// ray up the z axis stops where the caller's draw says, is asked only at the cut-outs,
+    /// with their τ in order, and goes on from each past it.
+    #[test]
+    fn a_stopping_hit_passes_the_cut_outs_the_draw_lets_through() {
+        let mut tris = quad(0.0).to_vec();
+        tris.extend(quad(0.5));
+        tris.extend(quad(1.0));
+        let bvh = Bvh::build(&tris, &[0.5, 0.5, 0.25, 0.25, 0.0, 0.0]);
+        let (from, up) = (Vec3::new(0.2, 0.1, -1.0), Vec3::Z);
+        let mut asked = Vec::new();
+        let (y, hit) = bvh
+            .stopping_hit(from, up, u32::MAX, |tau| {
+                asked.push(tau);
+                true
+            })
+            .unwrap();
+        assert_eq!(asked, [0.5, 0.25]);
+        assert!(hit.triangle >= 4 && hit.transmittance == 0.0);
+        assert!(
+            (y - Vec3::new(0.2, 0.1, 1.0)).length() < 1e-5,
+            "stopped at {y}"
+        );
+        let (y, hit) = bvh.stopping_hit(from, up, u32::MAX, |_| false).unwrap();
+        assert!(hit.triangle < 2 && hit.transmittance == 0.5);
+        assert!(y.z.abs() < 1e-5, "stopped at {y}");
+        // Past MAX_PASSES cut-outs the ray is taken to stop nowhere.
+        let many: Vec<[Vec3; 3]> = (0..=MAX_PASSES).map(|k| quad(k as f32)[0]).collect();
+        let bvh = Bvh::build(&many, &vec![0.5; many.len()]);
+        assert!(bvh.stopping_hit(from, up, u32::MAX, |_| true).is_none());
     }
 }

@@ -60,9 +60,6 @@ pub struct Tracer<'a> {
     pub sky: Vec3,
 }
 
-/// Pass-throughs of transmissive triangles one ray may make before it is taken as blocked.
-const MAX_PASSES: usize = 64;
-
 impl Tracer<'_> {
     /// One sample of B at point `x` with side normal `n` on triangle `own`.
     pub fn radiosity(&self, x: Vec3, n: Vec3, own: u32, rng: &mut Rng) -> DVec3 {
@@ -116,24 +113,9 @@ impl Tracer<'_> {
     /// The first surface along `from + t·d` (t > 0) that stops the ray, skipping `own`:
     /// transmissive triangles let it through with probability τ.
     fn trace(&self, from: Vec3, d: Vec3, own: u32, rng: &mut Rng) -> Option<(Vec3, u32)> {
-        let s = self.surfaces;
-        let mut origin = from;
-        let mut skip = own;
-        for _ in 0..MAX_PASSES {
-            let hit = self.bvh.closest_hit(origin, d, 0.0, f32::INFINITY, skip)?;
-            let y = origin + d * hit.t;
-            let tau = s
-                .transmittance
-                .get(hit.triangle as usize)
-                .copied()
-                .unwrap_or(0.0);
-            if tau <= 0.0 || rng.next() >= tau {
-                return Some((y, hit.triangle));
-            }
-            origin = y;
-            skip = hit.triangle;
-        }
-        None
+        self.bvh
+            .stopping_hit(from, d, own, |tau| rng.next() < tau)
+            .map(|(y, hit)| (y, hit.triangle))
     }
 
     /// Irradiance from the punctual lights and the sun, one shadow ray each.

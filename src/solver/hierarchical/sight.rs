@@ -277,33 +277,19 @@ impl Sight {
     }
 }
 
-/// Most cut-outs a leaf's ray passes before it is taken to stop.
-const MAX_PASSES: usize = 16;
-
 /// The element where the ray from `from` along `w` (leaving triangle `own`) stops, or
 /// `NONE` where it leaves the scene or meets the back of a single-sided surface. It passes
 /// a triangle of transmittance τ (an alpha cut-out's uncovered share, glass) with
 /// probability τ, drawn from `draw`, as the unbiased reference's paths do; where it stops
 /// on one it brings the covered part's radiosity (`ClusterLight::rays`).
 fn first_stop(mesh: &Mesh, bvh: &Bvh, (from, w, own): (Vec3, Vec3, u32), mut draw: u64) -> u32 {
-    let (mut origin, mut skip) = (from, own);
-    for _ in 0..MAX_PASSES {
-        let Some(hit) = bvh.closest_hit(origin, w, 0.0, f32::INFINITY, skip) else {
-            return NONE;
-        };
-        let y = origin + w * hit.t;
-        let tau = mesh
-            .transmittance
-            .get(hit.triangle as usize)
-            .copied()
-            .unwrap_or(0.0);
-        if tau > 0.0 && unit(draw) < tau {
-            (origin, skip, draw) = (y, hit.triangle, hash(draw));
-            continue;
-        }
-        return mesh.element_at(hit.triangle, y, -w).unwrap_or(NONE);
-    }
-    NONE
+    let pass = |tau: f32| {
+        draw = hash(draw);
+        unit(draw) < tau
+    };
+    bvh.stopping_hit(from, w, own, pass)
+        .and_then(|(y, hit)| mesh.element_at(hit.triangle, y, -w))
+        .unwrap_or(NONE)
 }
 
 /// Per leaf element, itself and the other leaf children of its quadtree parent (see
