@@ -29,7 +29,7 @@
 
 use super::sight::{ClusterLight, Sight};
 use super::table::{LinkTable, StoredLink};
-use super::{Hierarchy, NONE, NodeId, Octants, Sender, linear_at, sent_at};
+use super::{Hierarchy, NONE, NodeId, Octants, Sender, gathered_at_surface, linear_at, sent_at};
 use crate::mesh::Mesh;
 use crate::solver::ELEMENT_CHUNK;
 use glam::{DVec3, Vec3};
@@ -127,7 +127,7 @@ impl Hierarchy {
     pub(super) fn sweep_incrementally(
         &mut self,
         mesh: &Mesh,
-        x: &[DVec3],
+        (x, opacity): (&[DVec3], &[f32]),
         gathered: &mut [DVec3],
     ) -> Option<()> {
         // Each incremental sweep adds its changes to sums the last full sweep made, so
@@ -254,7 +254,7 @@ impl Hierarchy {
             }
         }
         let down = if by_rays {
-            ClusterLight::rays(&b_change, &self.element_cover)
+            ClusterLight::rays(&b_change, opacity)
         } else {
             ClusterLight::facing(&cluster_change, &self.clusters)
         };
@@ -398,11 +398,11 @@ impl Hierarchy {
                 Change::Cluster(c, o)
             }
             None => {
-                // As the full gather: along the leaves' rays, not from the clusters' links.
+                // As the full gather.
                 let by_rays = self.leaf_sight().is_some();
                 let at = self.centre(mesh, r);
                 let mut h = [Vec3::ZERO; 3];
-                for l in group.filter(|l| !(by_rays && l.source.cluster().is_some())) {
+                for l in group.filter(|l| gathered_at_surface(by_rays, l)) {
                     let d = change(l, at).0;
                     let c = l.transfer.corners();
                     for k in 0..3 {

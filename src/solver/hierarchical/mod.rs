@@ -230,6 +230,13 @@ impl Sender {
     }
 }
 
+/// Whether the gather at a surface node takes link `l`'s light: all but a link from a
+/// cluster where the leaves' rays are cast (`by_rays`), whose light they bring instead
+/// (see [`sight`]).
+fn gathered_at_surface(by_rays: bool, l: &StoredLink) -> bool {
+    !(by_rays && l.source.cluster().is_some())
+}
+
 /// A linear function over a triangle, given by its values at the corners, at the point
 /// whose barycentric weights are `w`.
 fn mix(corners: &[Vec3; 3], w: [f32; 3]) -> Vec3 {
@@ -308,10 +315,6 @@ pub(super) struct Hierarchy {
     /// stream the elements themselves (72 bytes each) to find them.
     element_area: Vec<f32>,
     element_cluster: Vec<u32>,
-    /// Per element, 1 / its opacity (`Mesh::opacity`): what turns the radiosity it sends
-    /// into its covered part's, which a leaf's ray that stops there brings; empty where
-    /// every element is opaque.
-    element_cover: Vec<f32>,
     /// Per element, the factor its gathered H is scaled by so that its links' form
     /// factors sum to at most 1 (see [`Hierarchy::conservation_caps`]); empty or stale
     /// (another length) while a refinement round changes the links.
@@ -397,7 +400,6 @@ impl Hierarchy {
             element_node: Vec::new(),
             element_area: Vec::new(),
             element_cluster: Vec::new(),
-            element_cover: Vec::new(),
             leaf_cap: Vec::new(),
             basis: None,
             by_source: None,
@@ -462,16 +464,6 @@ impl Hierarchy {
             }
         }
         self.element_area = mesh.elements.iter().map(|e| e.area).collect();
-        let opacity: Vec<f32> = mesh
-            .elements
-            .iter()
-            .map(|e| mesh.opacity(&mesh.patches[e.patch as usize]))
-            .collect();
-        self.element_cover = if opacity.iter().any(|&o| o < 1.0) {
-            opacity.iter().map(|o| 1.0 / o).collect()
-        } else {
-            Vec::new()
-        };
         let above = &self.clusters.patch_parent;
         self.element_cluster = mesh
             .elements
@@ -649,10 +641,7 @@ impl Hierarchy {
                     }
                 } else {
                     let at = centre(r);
-                    for l in group
-                        .iter()
-                        .filter(|l| !(by_rays && l.source.cluster().is_some()))
-                    {
+                    for l in group.iter().filter(|l| gathered_at_surface(by_rays, l)) {
                         let b = self.source_b(l, at);
                         let c = l.transfer.corners();
                         for k in 0..3 {
@@ -676,11 +665,12 @@ impl Hierarchy {
     }
 
     /// The light of the links to clusters, laid out for the leaves: along their rays
-    /// where the sight fits the leaves (from the elements' radiosity `b`, a ray taking its
-    /// hit's covered part's: see `Mesh::opacity`), by facing otherwise (see [`sight`]).
-    fn cluster_down(&self, b: &[DVec3]) -> ClusterLight {
+    /// where the sight fits the leaves (from the elements' radiosity `b` and `opacity`, a
+    /// ray taking its hit's covered part's: see `Mesh::opacity`), by facing otherwise (see
+    /// [`sight`]).
+    fn cluster_down(&self, b: &[DVec3], opacity: &[f32]) -> ClusterLight {
         match self.leaf_sight() {
-            Some(_) => ClusterLight::rays(b, &self.element_cover),
+            Some(_) => ClusterLight::rays(b, opacity),
             None => ClusterLight::facing(&self.cluster_h, &self.clusters),
         }
     }
@@ -745,7 +735,8 @@ impl Hierarchy {
     /// its brightest leaf, so the caps bound the light a leaf takes without proving the
     /// sweeps a contraction. A capped leaf's links are all scaled alike, whichever of them
     /// brought the excess. Leaves the node values at `radiosity`, as a pull does.
-    fn conservation_caps(&mut self, mesh: &Mesh, bvh: &Bvh, radiosity: &[DVec3]) {
+    /// `opacity`: each element's (`Solver::opacity`, empty where all are opaque).
+    fn conservation_caps(&mut self, mesh: &Mesh, bvh: &Bvh, radiosity: &[DVec3], opacity: &[f32]) {
         if self.leaf_sight().is_none() {
             self.sight = Some(Sight::cast(mesh, bvh));
         }
@@ -760,11 +751,10 @@ impl Hierarchy {
         // Every surface's covered part at B = 1: an element then sends its opacity
         // (`Mesh::opacity`), and a cut-out's link counts its covered share of the
         // hemisphere, the light through it the rest.
-        let ones: Vec<DVec3> = if self.element_cover.is_empty() {
+        let ones: Vec<DVec3> = if opacity.is_empty() {
             vec![DVec3::ONE; mesh.elements.len()]
         } else {
-            let opacity = |c: &f32| DVec3::splat(1.0 / *c as f64);
-            self.element_cover.iter().map(opacity).collect()
+            opacity.iter().map(|o| DVec3::splat(*o as f64)).collect()
         };
         self.pull(mesh, &ones);
         self.gather(mesh);
@@ -776,7 +766,7 @@ impl Hierarchy {
         if let Some(sight) = self.sight.as_mut() {
             sight.set_surface_share(share);
         }
-        let down = self.cluster_down(&ones);
+        let down = self.cluster_down(&ones, opacity);
         self.leaf_cap = (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(1024)
@@ -857,14 +847,14 @@ impl Solver {
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
                     if changed {
-                        h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity);
+                        h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity, &self.opacity);
                     }
                 }
             },
             Stage::Sweep => {
                 // Leaves split in a round that kept its links: caps of another length.
                 if h.leaf_cap.len() != self.mesh.elements.len() {
-                    h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity);
+                    h.conservation_caps(&self.mesh, &self.bvh, &self.radiosity, &self.opacity);
                 }
                 let change = self.sweep(h, true);
                 h.sweeps += 1;
@@ -895,7 +885,7 @@ impl Solver {
 
         let mesh = &self.mesh;
         let incremental = may_be_incremental
-            && h.sweep_incrementally(mesh, &self.radiosity, &mut self.gathered)
+            && h.sweep_incrementally(mesh, (&self.radiosity, &self.opacity), &mut self.gathered)
                 .is_some();
         if incremental {
             h.incremental_sweeps += 1;
@@ -904,7 +894,7 @@ impl Solver {
             h.incremental_in_a_row = 0;
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
-            let down = h.cluster_down(&self.radiosity);
+            let down = h.cluster_down(&self.radiosity, &self.opacity);
             // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
             // at once (`edits`); the linear H for incremental sweeps.
             (h.leaf_linear, self.gathered) = (0..mesh.elements.len())

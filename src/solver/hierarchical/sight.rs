@@ -118,13 +118,17 @@ impl ClusterLight {
         ClusterLight::Facing(down)
     }
 
-    /// Along the leaves' rays, from the elements' radiosity `b`, each scaled by its
-    /// `cover` (none where empty).
-    pub fn rays(b: &[DVec3], cover: &[f32]) -> ClusterLight {
-        ClusterLight::Rays(if cover.is_empty() {
+    /// Along the leaves' rays, from the elements' radiosity `b` over their `opacity`
+    /// (their covered parts', which a ray that stops there brings; `opacity` empty where
+    /// every element is opaque).
+    pub fn rays(b: &[DVec3], opacity: &[f32]) -> ClusterLight {
+        ClusterLight::Rays(if opacity.is_empty() {
             b.iter().map(|v| v.as_vec3()).collect()
         } else {
-            b.iter().zip(cover).map(|(v, c)| v.as_vec3() * *c).collect()
+            b.iter()
+                .zip(opacity)
+                .map(|(v, o)| v.as_vec3() / *o)
+                .collect()
         })
     }
 }

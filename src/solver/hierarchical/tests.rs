@@ -133,7 +133,7 @@ fn push_pull_hands_the_leaves_the_power_the_nodes_gathered() {
     h.pull(&s.mesh, &s.radiosity);
     h.gather(&s.mesh);
     let mesh = &s.mesh;
-    let down = h.cluster_down(&s.radiosity);
+    let down = h.cluster_down(&s.radiosity, &s.opacity);
     // Gathered: every surface node's mean H (its linear function's mean over it) times
     // its area.
     let mut gathered = 0.0f64;
@@ -417,12 +417,13 @@ fn incremental_against_full(settings: HierarchySettings) {
     let before = s.gathered.clone();
     let mut incremental = before.clone();
     assert!(
-        h.sweep_incrementally(&mesh, &x, &mut incremental).is_some(),
+        h.sweep_incrementally(&mesh, (&x, &s.opacity), &mut incremental)
+            .is_some(),
         "an edit of one patch sweeps incrementally"
     );
     h.pull(&mesh, &x);
     h.gather(&mesh);
-    let down = h.cluster_down(&x);
+    let down = h.cluster_down(&x, &s.opacity);
     let full: Vec<DVec3> = (0..mesh.elements.len())
         .map(|e| {
             h.capped(e, h.leaf_irradiance_linear(&mesh, e, &down))
