@@ -76,11 +76,6 @@ impl Frame {
     pub fn epsilon(&self) -> f32 {
         self.scale * 1e-5
     }
-
-    /// A length beyond the scene, for rays towards lights at infinity.
-    pub fn far(&self) -> f32 {
-        self.scale * 4.0
-    }
 }
 
 /// The shortest altitude of triangle `t`: twice its area over its longest edge (how wide

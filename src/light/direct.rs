@@ -69,7 +69,6 @@ pub fn irradiance_with_sky_rays(
     sky_rays: u32,
 ) -> (Vec3, u32) {
     let from = x + n * frame.epsilon();
-    let far = frame.far();
     let mut h = Vec3::ZERO;
     let mut rays = 0;
     for light in &external.lights {
@@ -114,7 +113,7 @@ pub fn irradiance_with_sky_rays(
                 if c > 0.0 {
                     rays += 1;
                     h += *irradiance
-                        * (c * bvh.transmittance(from, from + to_light * far, [own, u32::MAX]));
+                        * (c * bvh.transmittance_toward(from, to_light, [own, u32::MAX]));
                 }
             }
         }
@@ -125,12 +124,12 @@ pub fn irradiance_with_sky_rays(
             let c = n.dot(to_sun);
             if c > 0.0 {
                 rays += 1;
-                h += e_sun * (c * bvh.transmittance(from, from + to_sun * far, [own, u32::MAX]));
+                h += e_sun * (c * bvh.transmittance_toward(from, to_sun, [own, u32::MAX]));
             }
         }
         if env.sky.max_element() > 0.0 {
             let k = (sky_rays.max(1) as f32).sqrt() as u32;
-            let open = sky_fraction(bvh, (from, n, own), far, seed, k);
+            let open = sky_fraction(bvh, (from, n, own), seed, k);
             rays += k * k;
             h += env.sky * (std::f32::consts::PI * open);
         }
@@ -172,7 +171,7 @@ pub fn spot_attenuation(cos_angle: f64, inner: f64, outer: f64) -> f32 {
 
 /// Fraction of cosine-weighted directions above (`from`, `n`) that escape the scene.
 /// One ray per cell of a k × k stratified grid.
-fn sky_fraction(bvh: &Bvh, (from, n, own): (Vec3, Vec3, u32), far: f32, seed: u64, k: u32) -> f32 {
+fn sky_fraction(bvh: &Bvh, (from, n, own): (Vec3, Vec3, u32), seed: u64, k: u32) -> f32 {
     let (t, b) = orthonormal_basis(n);
     let mut open = 0.0;
     for i in 0..k {
@@ -181,7 +180,7 @@ fn sky_fraction(bvh: &Bvh, (from, n, own): (Vec3, Vec3, u32), far: f32, seed: u6
             let u = (i as f32 + unit(h)) / k as f32;
             let v = (j as f32 + unit(hash(h))) / k as f32;
             let d = cosine_direction(n, (t, b), u, v);
-            open += bvh.transmittance(from, from + d * far, [own, u32::MAX]);
+            open += bvh.transmittance_toward(from, d, [own, u32::MAX]);
         }
     }
     open / (k * k) as f32

@@ -49,14 +49,13 @@ impl Punctual {
         }
     }
 
-    /// Whether the light is seen from `x` (the rays skip the triangles `skip`); `far`: a
-    /// length beyond the scene, for lights at infinity.
-    pub fn visible(self, bvh: &Bvh, x: Vec3, skip: [u32; 2], far: f32) -> bool {
-        let target = match self {
-            Punctual::Point(l) => l,
-            Punctual::Direction(d) => x + d * far,
+    /// Whether the light is seen from `x` (the rays skip the triangles `skip`).
+    pub fn visible(self, bvh: &Bvh, x: Vec3, skip: [u32; 2]) -> bool {
+        let through = match self {
+            Punctual::Point(l) => bvh.transmittance(x, l, skip),
+            Punctual::Direction(d) => bvh.transmittance_toward(x, d, skip),
         };
-        bvh.transmittance(x, target, skip) > 0.5
+        through > 0.5
     }
 }
 

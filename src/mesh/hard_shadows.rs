@@ -27,10 +27,9 @@ impl LightTargets {
     /// per source (the first 64).
     pub fn seen(&self, mesh: &Mesh, bvh: &Bvh, p: Vec3, n: Vec3, own: u32) -> u64 {
         let x = p + n * mesh.epsilon();
-        let far = mesh.frame().far();
         self.sources
             .iter()
-            .map(|&(l, tri)| n.dot(l.towards(p)) > 0.0 && l.visible(bvh, x, [own, tri], far))
+            .map(|&(l, tri)| n.dot(l.towards(p)) > 0.0 && l.visible(bvh, x, [own, tri]))
             .take(64)
             .enumerate()
             .fold(0, |m, (b, seen)| m | (u64::from(seen) << b))
@@ -45,7 +44,6 @@ impl LightTargets {
             return Vec::new();
         }
         let eps = mesh.epsilon();
-        let far = mesh.frame().far();
         (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(64)
@@ -61,7 +59,7 @@ impl LightTargets {
                     if e.normal.dot(l.towards(c)) <= 0.0 {
                         return false;
                     }
-                    let vis = corners.map(|x| l.visible(bvh, x, [own, tri], far));
+                    let vis = corners.map(|x| l.visible(bvh, x, [own, tri]));
                     vis[0] != vis[1] || vis[1] != vis[2]
                 })
             })

@@ -68,7 +68,6 @@ pub(super) fn shadow_cuts(
         }
     }
     let eps = scale * 1e-5;
-    let far = scale * 4.0;
     for light in lights {
         check(cancel)?;
         let towards = |p: Vec3| light.towards(p);
@@ -122,7 +121,7 @@ pub(super) fn shadow_cuts(
             })
             .collect::<Result<Vec<_>, Cancelled>>()?
             .concat();
-        let visible = |p: Vec3, own: u32| light.visible(bvh, p, [own, u32::MAX], far);
+        let visible = |p: Vec3, own: u32| light.visible(bvh, p, [own, u32::MAX]);
         let jump = |&(edge, i): &([Vec3; 2], u32)| {
             let r = &triangles[i as usize];
             let nrm = triangle_normal(r);
