@@ -23,6 +23,10 @@ pub fn render(
     quiet: bool,
 ) -> Result<()> {
     let s = load_scene(scene, options, quiet)?;
+    if !picture.final_gather {
+        // A machine that cannot draw the picture says so before the solve, not after.
+        view::render::headless_device()?;
+    }
     let prepared = prepare(&s, options, quiet);
     let mut solver = prepared.solver(options.solver_settings())?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;

@@ -14,7 +14,7 @@ pub use super::edits::Placement;
 use super::camera::Camera;
 use super::files::{PathAction, Shots, load_recent};
 use super::gpu::Gpu;
-use super::render::Display;
+use super::render::{self, Display};
 use super::session::{Session, Snap};
 use crate::files::WriteError;
 use crate::mesh::{Mesh, MeshSettings};
@@ -167,7 +167,7 @@ impl App {
             status: String::new(),
             recent: load_recent(),
             prompt: None,
-            gpu: cc.wgpu_render_state.clone().map(Gpu::new),
+            gpu: None,
             frame_times: Vec::new(),
             last_frame: None,
             shots: Shots::new(
@@ -183,8 +183,14 @@ impl App {
             frame_stats_written: None,
         };
         app.open(options.scene);
-        if app.gpu.is_none() {
-            app.session.error = Some("no wgpu renderer: the 3D view is unavailable".into());
+        match cc.wgpu_render_state.clone() {
+            Some(state) => match render::unsupported(&state.adapter) {
+                None => app.gpu = Some(Gpu::new(state)),
+                Some(why) => app.session.error = Some(format!("{why}: the 3D view is unavailable")),
+            },
+            None => {
+                app.session.error = Some("no wgpu renderer: the 3D view is unavailable".into());
+            }
         }
         app
     }

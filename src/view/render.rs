@@ -615,6 +615,23 @@ impl GpuMesh {
     }
 }
 
+/// Why `adapter` cannot draw the view, if it cannot. The colour target is viewed both as
+/// sRGB and as plain RGBA8 ([`Target`]), which takes texture view formats, a capability
+/// that OpenGL adapters lack (a machine without a Vulkan driver gets one): creating the
+/// target there panics inside wgpu.
+pub fn unsupported(adapter: &wgpu::Adapter) -> Option<String> {
+    let flags = adapter.get_downlevel_capabilities().flags;
+    if flags.contains(wgpu::DownlevelFlags::VIEW_FORMATS) {
+        return None;
+    }
+    let info = adapter.get_info();
+    Some(format!(
+        "the graphics adapter {} ({:?}) cannot draw the view: it lacks texture view formats \
+         (install Mesa's mesa-vulkan-drivers for a software Vulkan one)",
+        info.name, info.backend
+    ))
+}
+
 /// A device with no window (for `render`, screenshots in tests): the same software or
 /// hardware adapter choice as the viewer, preferring Vulkan.
 pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
@@ -629,6 +646,9 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
     .map_err(|e| {
         anyhow!("no graphics adapter (install Mesa's mesa-vulkan-drivers for a software one): {e}")
     })?;
+    if let Some(why) = unsupported(&adapter) {
+        return Err(anyhow!(why));
+    }
     let info = adapter.get_info();
     let name = format!("{} ({:?})", info.name, info.backend);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
