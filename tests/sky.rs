@@ -146,3 +146,52 @@ fn a_plate_a_centimetre_over_the_floor_shades_it_from_the_sky_and_the_sun() {
     let sun = irradiance(&scene(0.0, Some((DVec3::Y, Vec3::splat(100.0)))));
     assert_eq!(sun, [0.0; 3], "the sun under the plate");
 }
+
+/// A point light 20 m away and 1 m up, and a black wall standing 1 mm beside a floor point,
+/// between it and the light. The point is in the wall's shadow and receives nothing: its
+/// segment to the light crosses the wall 1 mm from the point, 5·10⁻⁵ of the way. On the
+/// light's side, 3 mm from the wall, a point receives I cos θ / r² (one unblocked ray:
+/// exact but for f32 rounding, hence 10⁻⁴).
+///
+/// A segment's shadow test used to ignore its first 10⁻⁴, 2 mm of this one: the wall was
+/// not there, and the shaded point got the whole I cos θ / r².
+#[test]
+fn a_wall_a_millimetre_from_a_point_shades_it_from_a_far_light() {
+    let mut scene = common::opening(RHO as f32, 0.2);
+    scene.objects.truncate(1);
+    scene.objects.push(common::quad_object(
+        "wall",
+        glam::DMat4::IDENTITY,
+        [
+            [0.001, 0.0, -0.5],
+            [0.001, 0.5, -0.5],
+            [0.001, 0.5, 0.5],
+            [0.001, 0.0, 0.5],
+        ],
+        1,
+    ));
+    scene.environment = None;
+    let (light, intensity) = (DVec3::new(20.0, 1.0, 0.0), 400.0);
+    scene.lights = vec![radiosity::scene::Light::Point {
+        position: light,
+        intensity: Vec3::splat(intensity as f32),
+        range: None,
+    }];
+    let p = prepared(&scene, 100);
+    let frame = p.mesh.frame();
+    let irradiance = |x: f64| {
+        let at = p.mesh.to_local(DVec3::new(x, 0.0, 0.0));
+        let own = p.mesh.locate_patch(at, Vec3::Y).expect("on the floor");
+        let triangle = p.mesh.patches[own as usize].scene_triangle;
+        let (h, _) = direct::irradiance(&frame, &p.bvh, &p.external, at, Vec3::Y, triangle, 1);
+        h.x as f64
+    };
+    assert_eq!(irradiance(0.0), 0.0, "behind the wall");
+    let r = (light - DVec3::new(0.004, 0.0, 0.0)).length();
+    let want = intensity * (light.y / r) / (r * r);
+    let lit = irradiance(0.004);
+    assert!(
+        (lit - want).abs() < 1e-4 * want,
+        "in the light: {lit}, want {want}"
+    );
+}

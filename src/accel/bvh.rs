@@ -47,6 +47,17 @@ pub struct Hit {
     pub transmittance: f32,
 }
 
+/// The share of a segment at its start ([`Bvh::transmittance`]'s `a`, the receiving end)
+/// within which hits are ignored: 40 µm on a 40 m segment, a tenth of the lift that keeps
+/// the start off its own surface in a scene that size. It was 1e-4, as at the end: 4 mm
+/// there, and a surface touching a receiver did not shade it from a source that far.
+pub const START_MARGIN: f32 = 1e-6;
+
+/// The share of a segment at its end (the source) within which hits are ignored: what
+/// touches the source's sample point only grazes the segment there. The shaft test
+/// (`accel::shaft`) proves visibility for segments shortened by the same share.
+pub const END_MARGIN: f32 = 1e-4;
+
 /// Most cut-outs [`Bvh::stopping_hit`] lets a ray pass before it takes the ray to stop.
 pub const MAX_PASSES: usize = 64;
 
@@ -154,8 +165,11 @@ impl Bvh {
     /// Fraction of light passing along the open segment from `a` to `b`: the product of the
     /// transmittances of the triangles it crosses, 0 as soon as an opaque one is crossed
     /// (any-hit early exit). Hits on the triangles in `skip` (the segment's own source and
-    /// target surfaces) and within the first and last `1e-4` of the segment are ignored; the
-    /// caller offsets the endpoints off their surfaces by a scene-relative epsilon.
+    /// target surfaces), within the first [`START_MARGIN`] and within the last
+    /// [`END_MARGIN`] of the segment are ignored; the caller offsets the endpoints off their
+    /// surfaces by a scene-relative epsilon. `a` is the end where the light is received
+    /// (a receiver's sample point, a probe point), whose surroundings matter most: what
+    /// touches the receiver shades it.
     pub fn transmittance(&self, a: Vec3, b: Vec3, skip: [u32; 2]) -> f32 {
         let Some(wide) = &self.wide else {
             return 1.0;
@@ -164,8 +178,7 @@ impl Bvh {
         if !a.is_finite() || !dir.is_finite() {
             return 1.0;
         }
-        // Parametric bounds along the segment; see the doc for where they come from.
-        wide.transmittance(a, dir, 1e-4, 1.0 - 1e-4, skip)
+        wide.transmittance(a, dir, START_MARGIN, 1.0 - END_MARGIN, skip)
     }
 
     /// Fraction of light reaching `origin` from infinitely far along `direction` (the sun,
@@ -194,8 +207,7 @@ impl Bvh {
         }
         let dir = b - a;
         let inv = dir.recip();
-        // Parametric bounds along the segment; see the doc for where they come from.
-        let (t_min, t_max) = (1e-4f32, 1.0 - 1e-4);
+        let (t_min, t_max) = (START_MARGIN, 1.0 - END_MARGIN);
         let mut stack = [0u32; STACK];
         let mut sp = 1;
         let mut through = 1.0f32;

@@ -14,7 +14,7 @@
 //!   work, here for one occluder at a time).
 //! - Otherwise nothing is proved, and shadow rays decide.
 
-use super::bvh::{Bvh, STACK, Tri};
+use super::bvh::{Bvh, END_MARGIN, STACK, Tri};
 use glam::Vec3;
 
 /// What a shaft test proves about every segment from a point to a triangle.
@@ -60,15 +60,15 @@ impl Bvh {
         if self.tris.is_empty() {
             return Shaft::Clear;
         }
-        // `transmittance` ignores the last 1e-4 of each segment, so the shaft that matters
-        // ends short of the base: pull the base towards the apex by that much. This lets a
-        // shaft to a wall patch standing on the floor clear the floor, which it only
+        // `transmittance` ignores the last `END_MARGIN` of each segment, so the shaft that
+        // matters ends short of the base: pull the base towards the apex by that much. This
+        // lets a shaft to a wall patch standing on the floor clear the floor, which it only
         // touches at the segments' ends.
         let verts = [
             apex,
-            base[0] + (apex - base[0]) * 1e-4,
-            base[1] + (apex - base[1]) * 1e-4,
-            base[2] + (apex - base[2]) * 1e-4,
+            base[0] + (apex - base[0]) * END_MARGIN,
+            base[1] + (apex - base[1]) * END_MARGIN,
+            base[2] + (apex - base[2]) * END_MARGIN,
         ];
         // Face k is opposite vertex k; its outward normal points away from that vertex.
         let mut planes = [(Vec3::ZERO, 0.0f32); 4];
