@@ -22,6 +22,10 @@
 //!   push down, which along the leaves' rays (`sight`) is the change of the elements its
 //!   rays hit; it is cut at zero and capped again, and every leaf takes B = E' + ρ H.
 //!
+//! Where the leaves' rays are cast (`sight`), the full gather takes nothing from a cluster
+//! and gives nothing to one, so only the links out of changed surface nodes into surface
+//! nodes are gone through.
+//!
 //! This is the full sweep from x up to the f32 rounding of the sums (pull, gather and push
 //! are linear in B, and the clamps are applied to the new totals). It costs the links out
 //! of the changed nodes instead of all links; where more than a quarter of the elements or
@@ -158,13 +162,17 @@ impl Hierarchy {
             }
         }
         let (nodes, clusters) = self.above(mesh, &changed);
+        // Along the leaves' rays the full gather takes nothing from a cluster and gives
+        // nothing to one (`Hierarchy::gather`): the links that move light are those out of
+        // the changed surface nodes into surface nodes.
+        let sending_clusters: &[u32] = if by_rays { &[] } else { &clusters };
         self.index_links_by_source(mesh);
         let by_source = self.by_source.as_ref()?;
         let reach: usize = nodes
             .iter()
             .map(|&n| by_source.of(NodeId::surface(n)).len())
             .chain(
-                clusters
+                sending_clusters
                     .iter()
                     .map(|&c| by_source.of(NodeId::of_cluster(c)).len()),
             )
@@ -210,7 +218,7 @@ impl Hierarchy {
         let by_source = self.by_source.as_ref()?;
         let mut hit = vec![0u64; self.links.len().div_ceil(64)];
         let sources = nodes.iter().map(|&n| NodeId::surface(n));
-        for s in sources.chain(clusters.iter().map(|&c| NodeId::of_cluster(c))) {
+        for s in sources.chain(sending_clusters.iter().map(|&c| NodeId::of_cluster(c))) {
             for &i in by_source.of(s) {
                 hit[i as usize / 64] |= 1 << (i % 64);
             }
@@ -227,6 +235,7 @@ impl Hierarchy {
             .links
             .split_by_receiver(&reached)
             .into_par_iter()
+            .filter(|(r, _)| !(by_rays && r.cluster().is_some()))
             .map(|(r, group)| self.change_at(mesh, r, group, &sent))
             .collect();
 
