@@ -584,6 +584,36 @@ mod tests {
         assert!((t - 0.125).abs() < 1e-6, "0.5 × 0.25 expected, got {t}");
     }
 
+    /// A ray towards the sky from just under a cut-out (τ = 0.5 at z = 0) and an opaque
+    /// quad (z = 0.5): the cut-out 10⁻⁶ above the origin counts (a segment to a point
+    /// 10⁴ away ignores it: its first 10⁻⁴ is 1 unit), the opaque quad then stops the ray,
+    /// a grazing ray meets the cut-out only, and a ray beside them escapes whole.
+    #[test]
+    fn a_ray_towards_the_sky_counts_what_lies_just_past_its_origin() {
+        let mut tris = quad(0.0).to_vec();
+        tris.extend(quad(0.5));
+        let bvh = Bvh::build(&tris, &[0.5, 0.5, 0.0, 0.0]);
+        let origin = Vec3::new(0.2, 0.1, -1e-6);
+        let up = bvh.transmittance_toward(origin, Vec3::Z, [u32::MAX; 2]);
+        assert_eq!(up, 0.0, "the opaque quad stops it");
+        let through = bvh.transmittance_toward(origin, Vec3::Z, [2, 3]);
+        assert!(
+            (through - 0.5).abs() < 1e-6,
+            "the cut-out's 0.5, got {through}"
+        );
+        let far = bvh.transmittance(origin, origin + Vec3::Z * 1e4, [2, 3]);
+        assert_eq!(far, 1.0, "a segment's first 1e-4 is 1 unit here");
+        let beside = bvh.transmittance_toward(Vec3::new(3.0, 0.0, -1.0), Vec3::Z, [u32::MAX; 2]);
+        assert_eq!(beside, 1.0);
+        let tilted = bvh.transmittance_toward(origin, Vec3::new(0.0, 1.0, 1e-3), [u32::MAX; 2]);
+        // It crosses z = 0 a thousandth along (inside the cut-out) and z = 0.5 far past
+        // the opaque quad's edge.
+        assert!(
+            (tilted - 0.5).abs() < 1e-6,
+            "grazing: the cut-out only, got {tilted}"
+        );
+    }
+
     /// Two cut-outs (τ = 0.5 at z = 0, 0.25 at z = 0.5) before an opaque quad at z = 1: a
     /// ray up the z axis stops where the caller's draw says, is asked only at the cut-outs,
     /// with their τ in order, and goes on from each past it.
