@@ -14,7 +14,7 @@ use radiosity::scene::textures::{linear_to_srgb, srgb_to_linear};
 use radiosity::scene::{Scene, Slot};
 use radiosity::solver::SolverSettings;
 use radiosity::view::camera::Camera;
-use radiosity::view::render::{Display, Solution, ToneMap, render_image};
+use radiosity::view::render::{Display, Solution, ToneMap, headless_device, render_image};
 use std::path::{Path, PathBuf};
 
 /// The element and point (mesh frame) seen through the centre of pixel (x, y).
@@ -68,7 +68,9 @@ fn solve_and_render(
         textures: true,
         ..Default::default()
     };
-    let (image, _) = render_image(
+    let headless = headless_device().unwrap();
+    let image = render_image(
+        &headless,
         solver.mesh(),
         &solution,
         &scene.materials,

@@ -171,14 +171,7 @@ impl Bvh {
     /// (a receiver's sample point, a probe point), whose surroundings matter most: what
     /// touches the receiver shades it.
     pub fn transmittance(&self, a: Vec3, b: Vec3, skip: [u32; 2]) -> f32 {
-        let Some(wide) = &self.wide else {
-            return 1.0;
-        };
-        let dir = b - a;
-        if !a.is_finite() || !dir.is_finite() {
-            return 1.0;
-        }
-        wide.transmittance(a, dir, START_MARGIN, 1.0 - END_MARGIN, skip)
+        self.through(a, b - a, (START_MARGIN, 1.0 - END_MARGIN), skip)
     }
 
     /// Fraction of light reaching `origin` from infinitely far along `direction` (the sun,
@@ -190,13 +183,22 @@ impl Bvh {
     /// is centimetres there, and an occluder that close to the origin went unseen (a leaf
     /// 4 mm over a vase's rim, the wall that a surface runs into).
     pub fn transmittance_toward(&self, origin: Vec3, direction: Vec3, skip: [u32; 2]) -> f32 {
+        if direction == Vec3::ZERO {
+            return 1.0;
+        }
+        self.through(origin, direction, (0.0, f32::INFINITY), skip)
+    }
+
+    /// The transmittance along `origin + t·dir` for t in (`t_min`, `t_max`), by the wide
+    /// tree; 1 where there is nothing to cross or the ray is not finite.
+    fn through(&self, origin: Vec3, dir: Vec3, (t_min, t_max): (f32, f32), skip: [u32; 2]) -> f32 {
         let Some(wide) = &self.wide else {
             return 1.0;
         };
-        if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
+        if !origin.is_finite() || !dir.is_finite() {
             return 1.0;
         }
-        wide.transmittance(origin, direction, 0.0, f32::INFINITY, skip)
+        wide.transmittance(origin, dir, t_min, t_max, skip)
     }
 
     /// [`Bvh::transmittance`] by our own binary tree: kept as the baseline of

@@ -23,14 +23,16 @@ pub fn render(
     quiet: bool,
 ) -> Result<()> {
     let s = load_scene(scene, options, quiet)?;
-    if !picture.final_gather {
-        // A machine that cannot draw the picture says so before the solve, not after.
-        view::render::headless_device()?;
-    }
+    // A machine that cannot draw the picture says so before the solve, not after.
+    let headless = if picture.final_gather {
+        None
+    } else {
+        Some(view::render::headless_device()?)
+    };
     let prepared = prepare(&s, options, quiet);
     let mut solver = prepared.solver(options.solver_settings())?;
     run_with_progress(&mut solver, options.time_limit, quiet)?;
-    if picture.final_gather {
+    let Some(headless) = headless else {
         anyhow::ensure!(
             !picture.false_colour && !picture.wireframe,
             "--final-gather draws tone-mapped light only (no --false-colour or --wireframe)"
@@ -67,7 +69,7 @@ pub fn render(
             );
         }
         return Ok(());
-    }
+    };
     let radiosity = solver.radiosity();
     let (reflectance, emission) = (solver.reflectance(), solver.emission());
     let solution = Solution {
@@ -76,7 +78,8 @@ pub fn render(
         emission: &emission,
     };
     let (camera, display) = view_of(solver.mesh(), &prepared.bvh, &radiosity, picture);
-    let (image, adapter) = render_image(
+    let image = render_image(
+        &headless,
         solver.mesh(),
         &solution,
         &s.materials,
@@ -88,8 +91,9 @@ pub fn render(
     view::write_png(out, &image)?;
     if !quiet {
         eprintln!(
-            "rendered {} with {adapter} (EV {:.2}, {} tone map)",
+            "rendered {} with {} (EV {:.2}, {} tone map)",
             out.display(),
+            headless.adapter,
             display.ev,
             display.tonemap.name()
         );

@@ -72,8 +72,7 @@ impl Gpu {
 
     /// The adapter's name and backend.
     pub(super) fn adapter(&self) -> String {
-        let i = self.state.adapter.get_info();
-        format!("{} ({:?})", i.name, i.backend)
+        super::render::adapter_name(&self.state.adapter)
     }
 
     /// Draws the 3D picture of `uploads` into a target of `size` pixels when it is due,

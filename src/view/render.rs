@@ -624,17 +624,29 @@ pub fn unsupported(adapter: &wgpu::Adapter) -> Option<String> {
     if flags.contains(wgpu::DownlevelFlags::VIEW_FORMATS) {
         return None;
     }
-    let info = adapter.get_info();
     Some(format!(
-        "the graphics adapter {} ({:?}) cannot draw the view: it lacks texture view formats \
+        "the graphics adapter {} cannot draw the view: it lacks texture view formats \
          (install Mesa's mesa-vulkan-drivers for a software Vulkan one)",
-        info.name, info.backend
+        adapter_name(adapter)
     ))
+}
+
+/// The adapter's name and backend, as messages and statistics show it.
+pub fn adapter_name(adapter: &wgpu::Adapter) -> String {
+    let info = adapter.get_info();
+    format!("{} ({:?})", info.name, info.backend)
+}
+
+/// A device with no window, its queue and its adapter's name ([`adapter_name`]).
+pub struct Headless {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter: String,
 }
 
 /// A device with no window (for `render`, screenshots in tests): the same software or
 /// hardware adapter choice as the viewer, preferring Vulkan.
-pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
+pub fn headless_device() -> Result<Headless> {
     use eframe::egui_wgpu;
     let setup =
         egui_wgpu::WgpuSetup::CreateNew(egui_wgpu::WgpuSetupCreateNew::without_display_handle());
@@ -649,15 +661,17 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, String)> {
     if let Some(why) = unsupported(&adapter) {
         return Err(anyhow!(why));
     }
-    let info = adapter.get_info();
-    let name = format!("{} ({:?})", info.name, info.backend);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("radiosity headless"),
         required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
         ..Default::default()
     }))
     .context("creating the graphics device")?;
-    Ok((device, queue, name))
+    Ok(Headless {
+        device,
+        queue,
+        adapter: adapter_name(&adapter),
+    })
 }
 
 /// Reads `target` back as an RGBA8 image (sRGB bytes, as shown on screen).
@@ -728,9 +742,11 @@ pub struct Solution<'a> {
     pub emission: &'a [Vec3],
 }
 
-/// Renders `solution` on `mesh` to an image, offscreen, with the textures of `materials`
-/// (indices into `images`).
+/// Renders `solution` on `mesh` to an image, offscreen on `headless`, with the textures of
+/// `materials` (indices into `images`).
+#[allow(clippy::too_many_arguments)]
 pub fn render_image(
+    headless: &Headless,
     mesh: &Mesh,
     solution: &Solution,
     materials: &[Material],
@@ -738,22 +754,22 @@ pub fn render_image(
     camera: &Camera,
     display: &Display,
     size: [u32; 2],
-) -> Result<(image::RgbaImage, String)> {
-    let (device, queue, adapter) = headless_device()?;
-    let renderer = Renderer::new(&device);
-    let textures = GpuTextures::new(&device, &queue, images);
-    let gpu = renderer.upload(&device, &queue, mesh, materials, &textures);
+) -> Result<image::RgbaImage> {
+    let Headless { device, queue, .. } = headless;
+    let renderer = Renderer::new(device);
+    let textures = GpuTextures::new(device, queue, images);
+    let gpu = renderer.upload(device, queue, mesh, materials, &textures);
     let irradiance =
         crate::solver::irradiance(solution.radiosity, solution.reflectance, solution.emission);
     let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
-    gpu.set_values(&queue, &irradiance, &vertex);
-    gpu.set_surfaces(&queue, solution.reflectance, solution.emission);
+    gpu.set_values(queue, &irradiance, &vertex);
+    gpu.set_surfaces(queue, solution.reflectance, solution.emission);
     if display.reconstruction == Reconstruction::Hermite {
-        gpu.set_bezier(&queue, &bezier_points(mesh, &irradiance));
+        gpu.set_bezier(queue, &bezier_points(mesh, &irradiance));
     }
-    let target = Target::new(&device, size);
-    renderer.render(&device, &queue, &target, Some(&gpu), camera, display);
-    Ok((read_back(&device, &queue, &target)?, adapter))
+    let target = Target::new(device, size);
+    renderer.render(device, queue, &target, Some(&gpu), camera, display);
+    read_back(device, queue, &target)
 }
 
 /// The Hermite control points of every element for element values `values`.
