@@ -194,6 +194,38 @@ fn bad_input_exits_1_with_one_message_and_no_output_file() {
     assert_eq!(out.status.code(), Some(1));
 }
 
+/// `render` on a machine whose only graphics adapter cannot draw the view: wgpu's OpenGL
+/// backend (forced with `WGPU_BACKEND=gl`, as on a machine with no Vulkan driver) lacks
+/// texture view formats, and wgpu panicked on the first target after the whole solve.
+/// Now: exit 1, a message naming the adapter (or that there is none, where no OpenGL
+/// driver exists either) before the solve, and no image. Mesa may add lines of its own.
+#[test]
+fn render_without_a_usable_adapter_exits_1_with_one_message_and_no_image() {
+    let d = scratch_dir("cli-render-gl");
+    let image = d.join("shot.png");
+    let out = bin()
+        .args([
+            "render",
+            "builtin:cornell",
+            "--size",
+            "64x64",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&image)
+        .env("WGPU_BACKEND", "gl")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cannot draw the view") || err.contains("no graphics adapter"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!image.exists());
+}
+
 #[test]
 fn bench_writes_curves_for_every_method() {
     let d = scratch_dir("cli-bench");
