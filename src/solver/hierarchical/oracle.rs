@@ -575,7 +575,7 @@ impl View<'_> {
         } else {
             f32::INFINITY
         };
-        let mut t = transfer::evaluate(
+        let t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
             (r, &rs),
@@ -584,14 +584,10 @@ impl View<'_> {
             keep_spread,
             |shape, id| self.with_samples(shape, id),
         );
+        // Nothing passes: a cluster's kernel bound is zero, or no part of a surface
+        // receiver lies in front of the source (`transfer`).
         if t.spread <= 0.0 && t.values.iter().all(|v| *v <= 0.0) {
-            // A cluster's kernel bound is zero only where nothing can pass.
-            if r.cluster().is_some() || s.cluster().is_some() || !straddles(&rs, &ss) {
-                return None;
-            }
-            // The sample points see nothing, but part of the receiver faces part of the
-            // source: the oracle splits it if the source carries light.
-            t.spread = 1.0;
+            return None;
         }
         Some((Link::new(r, s, &t), t.rays))
     }
@@ -629,35 +625,6 @@ const CONTACT_GAP: f32 = 0.5;
 /// `sqrt(2 · area)`).
 fn can_split(area: f32, min_size: f64) -> bool {
     (2.0 * area as f64).sqrt() * 0.5 >= min_size * 0.999
-}
-
-/// Whether some corner of surface `r` lies in front of surface `s` and some corner of `s`
-/// above `r`'s plane (so part of `r` may see part of `s`); clusters always may.
-fn straddles(r: &Shape, s: &Shape) -> bool {
-    match (r, s) {
-        (
-            Shape::Surface {
-                verts: rv,
-                normal: rn,
-                ..
-            },
-            Shape::Surface {
-                verts: sv,
-                normal: sn,
-                ..
-            },
-        ) => {
-            let scale = rv
-                .iter()
-                .chain(sv)
-                .map(|v| v.abs().max_element())
-                .fold(1e-30, f32::max);
-            let tol = scale * 1e-6;
-            rv.iter().any(|v| sn.dot(*v - sv[0]) > tol)
-                && sv.iter().any(|v| rn.dot(*v - rv[0]) > tol)
-        }
-        _ => true,
-    }
 }
 
 impl Solver {
