@@ -121,6 +121,10 @@ const PREVIEW_SWEEPS: usize = 8;
 /// reference at 0.25 s, at one link per ray five and 23 %, at two eight and 23 %.
 const PREVIEW_LINKS_PER_RAY: f64 = 1.0;
 
+/// A coarse round (see `COARSE_START`) whose links pass this share of the link budget goes
+/// on at the full threshold.
+const COARSE_SHARE: usize = 4;
+
 /// Links decided per parallel chunk when a generation's decisions are applied.
 const APPLY_CHUNK: usize = 65_536;
 
@@ -744,10 +748,15 @@ impl Solver {
                     self.stats.rays += rays;
                     changed = true;
                 }
-                // Every round refines to the full threshold: a first round at 4 ε or 16 ε
-                // came out 50 % too bright on the Cornell box (its surviving cluster links
-                // overestimate), worse than waiting for the first full round.
-                let threshold = self.held_threshold(h);
+                // From coarse to fine (see `COARSE_START`): each round after the sweeps
+                // converged halves the factor.
+                if h.sweeps > 0 {
+                    h.coarseness = (h.coarseness * 0.5).max(1.0);
+                }
+                if h.threshold.is_infinite() {
+                    h.coarseness = 1.0; // past the link budget nothing refines
+                }
+                let threshold = self.held_threshold(h) * h.coarseness;
                 // Past the link budget (an infinite threshold) every link is kept: the
                 // round would only re-decide them all.
                 if threshold.is_nan() || threshold <= 0.0 || threshold.is_infinite() {
@@ -780,7 +789,9 @@ impl Solver {
         match result {
             Ok(true) => {
                 // The link budget's infinite threshold holds for later rounds too.
-                h.threshold = h.threshold.max(round.threshold);
+                if round.threshold.is_infinite() {
+                    h.threshold = f32::INFINITY;
+                }
                 let mut kept = std::mem::take(&mut round.kept);
                 kept.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                 // Past the link budget no round runs again: the misses are not needed.
@@ -901,8 +912,23 @@ impl Solver {
             // ends overlap carry their sampled transfer), and later rounds keep it.
             let links =
                 round.kept.len() + round.stuck.len() + round.waiting.len() + round.pairs.len();
-            if links > self.settings.hierarchy.max_links.min(MAX_LINK_BUDGET) {
+            let budget = self.settings.hierarchy.max_links.min(MAX_LINK_BUDGET);
+            if links > budget {
                 round.threshold = f32::INFINITY;
+            } else if h.coarseness > 1.0 && links > budget / COARSE_SHARE {
+                // The budget will cut this scene: refining coarse first would spend it deep
+                // in a few places instead of across the scene as the full threshold does.
+                // Go on at the full threshold from here, the links kept so far decided
+                // again with the next generation.
+                round.threshold /= h.coarseness;
+                round.external_threshold /= h.coarseness;
+                h.coarseness = 1.0;
+                let again = round.kept.drain(..).chain(round.stuck.drain(..));
+                if round.pairs.is_empty() {
+                    round.work.extend(again);
+                } else {
+                    round.made.extend(again);
+                }
             }
             return Ok(false);
         }
