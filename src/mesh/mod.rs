@@ -266,9 +266,9 @@ impl Mesh {
     /// each level is a choice by the coordinates, which are then taken into the child: a
     /// corner child where one is at least ½ ((2u − 1, 2v, 2w) for the first), otherwise
     /// the middle one, [ab, bc, ca], whose coordinates are (u + v − w, v + w − u, u + w − v).
-    /// A point on a child's edge goes to either
-    /// side. In f64 the steps add no rounding of their own: the leaf holds the point to
-    /// within the f32 rounding of its coordinates in the root.
+    /// A point on a child's edge goes to either side. In f64 the steps add no rounding of
+    /// their own: the leaf holds the point to within the f32 rounding of its coordinates in
+    /// the root.
     fn leaf_at<'a>(
         &'a self,
         mut node: &'a QuadNode,
@@ -472,15 +472,8 @@ mod tests {
         for (p, patch) in mesh.patches.iter().enumerate() {
             for _ in 0..16 {
                 k += 1;
-                use crate::geometry::sampling::{hash, unit};
-                let (a, b) = (unit(hash(k)), unit(hash(k ^ 0x5eed)));
-                let (a, b) = if a + b > 1.0 {
-                    (1.0 - a, 1.0 - b)
-                } else {
-                    (a, b)
-                };
-                let v = patch.verts;
-                let x = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
+                use crate::geometry::sampling::{hash, point_in_triangle, unit};
+                let x = point_in_triangle(&patch.verts, unit(hash(k)), unit(hash(k ^ 0x5eed)));
                 let e = mesh
                     .element_at(patch.scene_triangle, x, patch.normal)
                     .unwrap();

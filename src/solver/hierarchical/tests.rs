@@ -547,15 +547,9 @@ fn coarse_to_fine_rounds_end_where_full_threshold_rounds_end() {
         for (p, patch) in s.mesh.patches.iter().enumerate() {
             for _ in 0..16 {
                 k += 1;
-                use crate::geometry::sampling::{hash, unit};
-                let (a, b) = (unit(hash(k)), unit(hash(k ^ 0x5eed)));
-                let (a, b) = if a + b > 1.0 {
-                    (1.0 - a, 1.0 - b)
-                } else {
-                    (a, b)
-                };
-                let v = patch.verts;
-                points.push((p as u32, v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b));
+                use crate::geometry::sampling::{hash, point_in_triangle, unit};
+                let x = point_in_triangle(&patch.verts, unit(hash(k)), unit(hash(k ^ 0x5eed)));
+                points.push((p as u32, x));
             }
         }
         points

@@ -305,7 +305,7 @@ fn surface_to_surface(
         });
         if vhi <= 0.0 {
             // Hidden from every point, unproven for the rest of the receiver.
-            let at = seen_at_corners(bvh, eps, (rv, rn), (sv, sn), skip, seed);
+            let at = seen_at_corners(bvh, eps, (rv, rn), (sv, sn, &base), skip, seed);
             rays += at.rays;
             if at.seen > 0.0 {
                 (vhi, lit_corner) = (at.hi, at.seen);
@@ -369,8 +369,9 @@ struct Corners {
     rays: u32,
 }
 
-/// Looks at a source hidden from the receiver's three quadrature points from its corners,
-/// by a shaft's proof or 2 × 2 shadow rays: a shadow edge that crosses the receiver near a
+/// Looks at a source hidden from the receiver's three quadrature points from its corners
+/// (`base`: the source lifted off its plane, as the points' shafts take it), by a shaft's
+/// proof or 2 × 2 shadow rays: a shadow edge that crosses the receiver near a
 /// corner passes between the points unseen. A corner that sees the source makes the link
 /// partial, its spread at least what that corner sees (the zero function misses it
 /// there). A link hidden from its corners too may still have a lit part between them,
@@ -380,9 +381,9 @@ struct Corners {
 ///
 /// Before, a link its points saw nothing of split whenever its source had light, which
 /// refined every receiver hidden from any lit source down to the minimum size, whatever
-/// ε: the Cornell box at `--link-error 2` came to 36,574 leaves, 7,351 now; converged at
-/// the default ε, 72,160 leaves and 5.1 M links in 20.6 s then, 65,083 and 3.5 M in
-/// 16.0 s now. Dropping such links instead (nothing splits) took away light the
+/// ε: the Cornell box at `--link-error 2` came to 36,574 leaves, 7,351 with this rule;
+/// converged at the default ε, 72,160 leaves and 5.1 M links in 20.2–20.4 s, then 65,083
+/// and 3.5 M in 14.4–14.9 s (run in turn, before the rounds went from coarse to fine). Dropping such links instead (nothing splits) took away light the
 /// receiver's corner saw: a floor node 2 mm from the red wall lost a quarter of the
 /// lamp, which the tall block hides from the node's six points but not from all of it,
 /// and came out 16 % too dark.
@@ -390,11 +391,10 @@ fn seen_at_corners(
     bvh: &Bvh,
     eps: f32,
     (rv, rn): (&[Vec3; 3], Vec3),
-    (sv, sn): (&[Vec3; 3], Vec3),
+    (sv, sn, base): (&[Vec3; 3], Vec3, &[Vec3; 3]),
     skip: [u32; 2],
     seed: u64,
 ) -> Corners {
-    let base = sv.map(|v| v + sn * eps);
     let mut at = Corners {
         hi: 0.0,
         seen: 0.0,
@@ -406,7 +406,7 @@ fn seen_at_corners(
         if f <= 0.0 {
             continue;
         }
-        let (hi, visible) = match bvh.shaft(*x + rn * eps, &base, skip, eps * 0.1) {
+        let (hi, visible) = match bvh.shaft(*x + rn * eps, base, skip, eps * 0.1) {
             Shaft::Clear => (1.0, 1.0),
             Shaft::Blocked => (0.0, 0.0),
             Shaft::Unknown => {
