@@ -331,7 +331,7 @@ impl DisplayMesh {
     /// light and extrapolates at a surface's boundary instead of flattening it. Where the
     /// elements around a vertex do not span two directions, the mean and no slope. On a
     /// hard shadow edge, the mean of the elements on the vertex's side and no slope (see
-    /// [`ShadowSides`]).
+    /// [`ShadowSides`]). The gradients are limited (see `limit_gradients`).
     fn fit(&self, elements: &[Element], values: &[Vec3]) -> (Vec<Vec3>, Vec<[Vec3; 3]>) {
         let nv = self.positions.len();
         // Whether element `i` counts for vertex `k`: on a hard shadow edge, only the
@@ -435,7 +435,67 @@ impl DisplayMesh {
             }
             vals[k] = a;
         }
+        self.limit_gradients(elements, &vals, &range, &mut grads, counts);
         (vals, grads)
+    }
+
+    /// Scales each vertex's gradient, per channel, by the largest φ ≤ 1 that keeps the
+    /// plane from the vertex's value to the centroid of every element around it within
+    /// the range of those elements' values (and the vertex's): Barth and Jespersen's
+    /// limiter ("The design and application of upwind schemes on unstructured meshes",
+    /// AIAA 89-0366, 1989). A fit beside a sliver or across a shadow edge not marked
+    /// hard can tilt steeply where the values around the vertex are nearly equal: the
+    /// cubics then swing far beyond the light around them (on Sponza, 0.15 W/m² on a
+    /// point that is black in truth). Linear light keeps its gradient (the plane meets
+    /// every centroid's value), and since the Clough–Tocher elements are C¹ for any
+    /// vertex gradients, limiting leaves no kink.
+    fn limit_gradients(
+        &self,
+        elements: &[Element],
+        values: &[Vec3],
+        range: &[(Vec3, Vec3)],
+        grads: &mut [[Vec3; 3]],
+        counts: impl Fn(usize, usize) -> bool,
+    ) {
+        let mut phi = vec![Vec3::ONE; values.len()];
+        // The largest φ that keeps a + φ·δ within [lo, hi], per channel.
+        let limit = |phi: &mut Vec3, a: Vec3, delta: Vec3, lo: Vec3, hi: Vec3| {
+            for ch in 0..3 {
+                let room = if delta[ch] > 0.0 {
+                    hi[ch] - a[ch]
+                } else {
+                    lo[ch] - a[ch]
+                };
+                if delta[ch] != 0.0 {
+                    phi[ch] = phi[ch].min((room / delta[ch]).clamp(0.0, 1.0));
+                }
+            }
+        };
+        for (i, e) in elements.iter().enumerate() {
+            let c = e.centroid();
+            for (n, &k) in e.corners.iter().enumerate() {
+                let k = k as usize;
+                if !counts(i, k) {
+                    continue;
+                }
+                let a = values[k];
+                let (lo, hi) = (range[k].0.min(a), range[k].1.max(a));
+                let slope = |d: Vec3| along(&grads[k], d);
+                limit(&mut phi[k], a, slope(c - self.positions[k]), lo, hi);
+                // The cubic's inner points along the element's two edges from the vertex,
+                // a third of the way: within that range and the far end's value.
+                for j in [e.corners[(n + 1) % 3], e.corners[(n + 2) % 3]] {
+                    let (j, d) = (j as usize, self.positions[j as usize] - self.positions[k]);
+                    let far = values[j];
+                    limit(&mut phi[k], a, slope(d / 3.0), lo.min(far), hi.max(far));
+                }
+            }
+        }
+        for (g, f) in grads.iter_mut().zip(phi) {
+            for ch in 0..3 {
+                g[ch] *= f[ch];
+            }
+        }
     }
 
     /// Whether vertex `k` is a corner of an element a hard shadow edge crosses.
