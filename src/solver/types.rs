@@ -185,6 +185,11 @@ pub struct Stats {
     /// (see `solver::hierarchical::incremental`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub incremental_sweeps: Option<u64>,
+    /// Hierarchical: the refinement round under way among the rounds from coarse to fine
+    /// (counted from 0), and their number; the last, at the oracle's ε, repeats until it
+    /// changes nothing. What the viewer's progress bar counts besides the residual.
+    #[serde(skip)]
+    pub refinement_round: Option<(u32, u32)>,
 }
 
 /// A live material change of one patch (see [`Solver::edit_patches`]).

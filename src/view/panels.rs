@@ -104,19 +104,10 @@ impl App {
                 (None, ..) => "idle".to_string(),
             };
             ui.label(format!("{}: {stage}", self.session.source));
-            let progress = match self.session.stats.residual {
-                Some(r) if r > 0.0 => {
-                    let tol = self.solver_settings.tolerance.max(1e-12);
-                    (r.ln() / tol.ln()).clamp(0.0, 1.0) as f32
-                }
-                Some(_) => 1.0,
-                None => 0.0,
-            };
-            let progress = if self.session.converged {
-                1.0
-            } else {
-                progress
-            };
+            let s = &mut self.session;
+            let progress = s
+                .progress
+                .update(&s.stats, s.converged, self.solver_settings.tolerance);
             ui.add(
                 egui::ProgressBar::new(progress)
                     .desired_width(200.0)

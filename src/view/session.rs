@@ -54,6 +54,8 @@ pub(super) struct Session {
     pub(super) snapshot: Option<Snap>,
     pub(super) stats: Stats,
     pub(super) converged: bool,
+    /// What the status bar's progress bar shows.
+    pub(super) progress: Progress,
     pub(super) paused: bool,
     /// The convergence plot: (solver seconds, unshot fraction, residual), by time.
     pub(super) history: Vec<[f64; 3]>,
@@ -78,6 +80,45 @@ pub(super) struct Session {
     pub(super) camera_rest: Option<(Camera, Instant)>,
     pub(super) pass: Option<Pass>,
     pub(super) pass_texture: Option<eframe::egui::TextureHandle>,
+}
+
+/// The status bar's progress towards a converged solve: the residual's way from 1 to the
+/// tolerance on a log scale, and for the hierarchical method the refinement rounds too
+/// (round k of n with the residual's share r shows (k + r) / n, below 1 until the solve
+/// has converged), since every round's sweeps reach the tolerance again. It never goes
+/// back within one solve (a round's first sweep raises the residual); it starts again
+/// when a solve does (its solver time goes back) and when a converged solve is asked for
+/// more (an edit, a new setting).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Progress {
+    shown: f32,
+    seconds: f64,
+    converged: bool,
+}
+
+impl Progress {
+    /// The fraction to show now, given the solver's stats and whether it has converged.
+    pub(super) fn update(&mut self, stats: &Stats, converged: bool, tolerance: f64) -> f32 {
+        if stats.seconds < self.seconds || (self.converged && !converged) {
+            self.shown = 0.0;
+        }
+        (self.seconds, self.converged) = (stats.seconds, converged);
+        let residual = match stats.residual {
+            Some(r) if r > 0.0 => (r.ln() / tolerance.max(1e-12).ln()).clamp(0.0, 1.0),
+            Some(_) => 1.0,
+            None => 0.0,
+        };
+        let estimate = match stats.refinement_round {
+            Some((round, rounds)) => ((round as f64 + residual) / rounds.max(1) as f64).min(0.99),
+            None => residual,
+        };
+        self.shown = if converged {
+            1.0
+        } else {
+            self.shown.max(estimate as f32)
+        };
+        self.shown
+    }
 }
 
 impl Session {
@@ -124,5 +165,53 @@ impl App {
         if !source.starts_with("builtin:") {
             self.remember_recent(source);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stats(seconds: f64, residual: f64, round: Option<(u32, u32)>) -> Stats {
+        Stats {
+            seconds,
+            residual: Some(residual),
+            refinement_round: round,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn progress_counts_the_rounds_and_never_goes_back_within_a_solve() {
+        let tol = 1e-4;
+        let mut p = Progress::default();
+        // Round 0 of 5, its sweeps halfway to the tolerance (1e-2 of 1e-4 on a log scale).
+        let a = p.update(&stats(0.5, 1e-2, Some((0, 5))), false, tol);
+        assert!((a - 0.1).abs() < 1e-6, "{a}");
+        // Its sweeps at the tolerance: a fifth, not all of it.
+        let b = p.update(&stats(0.8, 1e-4, Some((0, 5))), false, tol);
+        assert!((b - 0.2).abs() < 1e-6, "{b}");
+        // The next round refines with the last sweep's residual still at the tolerance,
+        // then its first sweep raises the residual: the bar stays where it got.
+        let c = p.update(&stats(0.9, 1e-4, Some((1, 5))), false, tol);
+        assert!((c - 0.4).abs() < 1e-6, "{c}");
+        assert_eq!(p.update(&stats(1.0, 0.5, Some((1, 5))), false, tol), c);
+        // The last round at the tolerance: just short of full until the solve converges.
+        let last = p.update(&stats(5.0, 1e-5, Some((4, 5))), false, tol);
+        assert!((0.98..1.0).contains(&last), "{last}");
+        assert_eq!(p.update(&stats(6.0, 1e-5, Some((4, 5))), true, tol), 1.0);
+        // An edit asks the converged solve for more: the bar starts again.
+        let d = p.update(&stats(6.1, 1e-1, Some((4, 5))), false, tol);
+        assert!((0.8..1.0).contains(&d), "{d}");
+        // A new solve (its time starts again): from the start.
+        let e = p.update(&stats(0.1, 1.0, Some((0, 5))), false, tol);
+        assert_eq!(e, 0.0);
+    }
+
+    #[test]
+    fn progress_of_the_other_methods_is_the_residual_s_way_to_the_tolerance() {
+        let mut p = Progress::default();
+        let a = p.update(&stats(1.0, 1e-2, None), false, 1e-4);
+        assert!((a - 0.5).abs() < 1e-6, "{a}");
     }
 }

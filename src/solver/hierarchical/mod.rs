@@ -806,6 +806,15 @@ impl Hierarchy {
         self.edited.clear();
     }
 
+    /// The refinement round under way among the rounds from coarse to fine (see
+    /// [`COARSE_START`]), counted from 0, and their number: the round at 16 ε is 0 of 5,
+    /// those at ε are 4.
+    pub fn refinement_round(&self) -> (u32, u32) {
+        let rounds = COARSE_START.log2().round() as u32 + 1;
+        let round = (COARSE_START / self.coarseness.max(1.0)).log2().round() as u32;
+        (round.min(rounds - 1), rounds)
+    }
+
     /// The links there are: the solution's, or during a refinement round those it holds.
     pub fn link_count(&self) -> usize {
         self.links.len() + self.round.as_ref().map_or(0, oracle::Round::links)
@@ -846,6 +855,7 @@ impl Solver {
         self.stats.link_budget_reached = Some(h.threshold.is_infinite());
         self.stats.incremental_sweeps = Some(h.incremental_sweeps);
         self.stats.link_index_bytes = Some(h.link_index_bytes());
+        self.stats.refinement_round = Some(h.refinement_round());
         self.hierarchy = Some(h);
         result
     }
