@@ -221,6 +221,75 @@ fn previews_light_the_whole_scene_before_the_first_round_ends() {
     );
 }
 
+/// Streaming after the first solution: a refinement round previews its links as they
+/// refine (`LATER_PREVIEW_GROWTH`), so before its own sweeps the picture comes closer to
+/// the converged solution than the last round's. Measured by the light on each patch
+/// (patches are never split, so the sums compare across the leaves' splits). Measured on
+/// the Cornell box, off the converged light at each round's start and at its last
+/// preview: 0.37 → 0.22 %, 0.19 → 0.10 %, 0.12 → 0.056 %, 0.064 → 0.030 %, then two
+/// rounds at ε that barely change. Without previews after the first solution, the light
+/// changes only by the leaves' splits, which keep it.
+#[test]
+fn later_rounds_preview_their_links_as_they_refine() {
+    let mut s = solver(MeshSettings::default(), HierarchySettings::default(), 1e-3);
+    s.settings.step_budget = std::time::Duration::ZERO;
+    let per_patch = |s: &Solver| {
+        let mut light = vec![0.0f64; s.mesh.patches.len()];
+        for (b, e) in s.radiosity.iter().zip(&s.mesh.elements) {
+            light[e.patch as usize] += sum3d(*b) * e.area as f64;
+        }
+        light
+    };
+    // Per round after the first solution: the light at its start, and at its last preview.
+    let mut rounds: Vec<(Vec<f64>, Option<Vec<f64>>)> = Vec::new();
+    let mut last = per_patch(&s);
+    let mut in_round = false;
+    while !s.is_converged() {
+        s.step(crate::cancel::never()).unwrap();
+        let now = per_patch(&s);
+        let refining = s
+            .hierarchy
+            .as_ref()
+            .is_some_and(|h| h.sweeps > 0 && h.round.is_some());
+        if refining && !in_round {
+            rounds.push((last.clone(), None));
+        }
+        if refining && now != last {
+            rounds.last_mut().unwrap().1 = Some(now.clone());
+        }
+        in_round = refining;
+        last = now;
+    }
+    let converged = per_patch(&s);
+    let total: f64 = converged.iter().sum();
+    let distance = |light: &[f64]| {
+        light
+            .iter()
+            .zip(&converged)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f64>()
+            / total
+    };
+    let previewed: Vec<(f64, f64)> = rounds
+        .iter()
+        .filter_map(|(start, preview)| Some((distance(start), distance(preview.as_ref()?))))
+        .collect();
+    println!("later rounds (start, last preview) off the converged light: {previewed:?}");
+    // No round's preview is further off than its start (0.1 % for f32 sums of rounds that
+    // barely change), and the rounds that refine much come much closer.
+    for &(start, preview) in &previewed {
+        assert!(
+            preview <= start * 1.001,
+            "a preview {preview} off the converged light, its round's start {start}"
+        );
+    }
+    let closer = previewed.iter().filter(|(s, p)| *p <= 0.75 * s).count();
+    assert!(
+        closer >= 2,
+        "{closer} rounds' previews came closer by a quarter"
+    );
+}
+
 /// The link budget: a solve whose oracle would make sixty times more links stops
 /// refining near the budget and still converges, says so in its stats, and its light is
 /// the full solve's within what its coarser links may miss. The links with a cluster at
