@@ -84,9 +84,10 @@ pub(super) struct Session {
 
 /// The status bar's progress towards a converged solve: the residual's way from 1 to the
 /// tolerance on a log scale, and for the hierarchical method the refinement rounds too
-/// (round k of n with the residual's share r shows (k + r) / n, below 1 until the solve
-/// has converged), since every round's sweeps reach the tolerance again. It never goes
-/// back within one solve (a round's first sweep raises the residual); it starts again
+/// (round k of n with the residual's share r shows (k + r) / n), since every round's
+/// sweeps reach the tolerance again. Below 1 until the solve has converged (the flat
+/// methods' adaptive passes, too, start after the residual met the tolerance). It never
+/// goes back within one solve (a round's first sweep raises the residual); it starts again
 /// when a solve does (its solver time goes back) and when a converged solve is asked for
 /// more (an edit, a new setting).
 #[derive(Clone, Copy, Debug, Default)]
@@ -109,9 +110,10 @@ impl Progress {
             None => 0.0,
         };
         let estimate = match stats.refinement_round {
-            Some((round, rounds)) => ((round as f64 + residual) / rounds.max(1) as f64).min(0.99),
+            Some((round, rounds)) => (round as f64 + residual) / rounds.max(1) as f64,
             None => residual,
-        };
+        }
+        .min(0.99);
         self.shown = if converged {
             1.0
         } else {
@@ -213,5 +215,9 @@ mod tests {
         let mut p = Progress::default();
         let a = p.update(&stats(1.0, 1e-2, None), false, 1e-4);
         assert!((a - 0.5).abs() < 1e-6, "{a}");
+        // At the tolerance but refining adaptively: not yet full.
+        let b = p.update(&stats(2.0, 1e-5, None), false, 1e-4);
+        assert!((0.98..1.0).contains(&b), "{b}");
+        assert_eq!(p.update(&stats(3.0, 1e-5, None), true, 1e-4), 1.0);
     }
 }
