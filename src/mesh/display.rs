@@ -165,7 +165,7 @@ impl DisplayMesh {
     /// plane through the values of the elements that use it (see `fit`); T-vertices take
     /// their coarse edge's value at their parameter on it.
     pub fn vertex_values(&self, elements: &[Element], values: &[Vec3]) -> Vec<Vec3> {
-        let (mut values, _) = self.fit(elements, values);
+        let mut values = self.fit(elements, values).values;
         self.resolve_hanging(|h| {
             let [a, b] = h.edge.map(|i| values[i as usize]);
             let value = a + (b - a) * h.t;
@@ -219,6 +219,15 @@ impl DisplayMesh {
             }
         }
     }
+}
+
+/// What `DisplayMesh::fit` finds per display vertex: the value, the gradient of each RGB
+/// channel in the surface's tangent plane, and the range (least, greatest) of the values
+/// of the elements around it.
+struct Fit {
+    values: Vec<Vec3>,
+    gradients: Vec<[Vec3; 3]>,
+    range: Vec<(Vec3, Vec3)>,
 }
 
 /// Data for [`Reconstruction::Hermite`]: per display vertex a value and the gradient of
@@ -331,18 +340,9 @@ impl DisplayMesh {
     /// light and extrapolates at a surface's boundary instead of flattening it. Where the
     /// elements around a vertex do not span two directions, the mean and no slope. On a
     /// hard shadow edge, the mean of the elements on the vertex's side and no slope (see
-    /// [`ShadowSides`]). The gradients are limited (see `limit_gradients`).
-    fn fit(&self, elements: &[Element], values: &[Vec3]) -> (Vec<Vec3>, Vec<[Vec3; 3]>) {
+    /// [`ShadowSides`]). The range of the values around each vertex comes with them.
+    fn fit(&self, elements: &[Element], values: &[Vec3]) -> Fit {
         let nv = self.positions.len();
-        // Whether element `i` counts for vertex `k`: on a hard shadow edge, only the
-        // elements on the vertex's side of it.
-        let counts = |i: usize, k: usize| match &self.shadow_sides {
-            Some(s) => match s.vertex.get(k).copied().flatten() {
-                Some(side) => s.element.get(i) == Some(&side),
-                None => true,
-            },
-            None => true,
-        };
         // Fallback values: area-weighted means (where the plane fit is not determined);
         // and the range of the values around each vertex.
         let mut sum = vec![Vec3::ZERO; nv];
@@ -350,7 +350,7 @@ impl DisplayMesh {
         let mut range = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); nv];
         for (i, (e, v)) in elements.iter().zip(values).enumerate() {
             for &c in &e.corners {
-                if !counts(i, c as usize) {
+                if !self.counts(i, c as usize) {
                     continue;
                 }
                 let r = &mut range[c as usize];
@@ -376,7 +376,7 @@ impl DisplayMesh {
             let c = e.centroid();
             for &k in &e.corners {
                 let k = k as usize;
-                if !counts(i, k) {
+                if !self.counts(i, k) {
                     continue;
                 }
                 let d = c - self.positions[k];
@@ -435,13 +435,30 @@ impl DisplayMesh {
             }
             vals[k] = a;
         }
-        self.limit_gradients(elements, &vals, &range, &mut grads, counts);
-        (vals, grads)
+        Fit {
+            values: vals,
+            gradients: grads,
+            range,
+        }
+    }
+
+    /// Whether element `i` counts for vertex `k`: on a hard shadow edge, only the elements
+    /// on the vertex's side of it.
+    fn counts(&self, i: usize, k: usize) -> bool {
+        match &self.shadow_sides {
+            Some(s) => match s.vertex.get(k).copied().flatten() {
+                Some(side) => s.element.get(i) == Some(&side),
+                None => true,
+            },
+            None => true,
+        }
     }
 
     /// Scales each vertex's gradient, per channel, by the largest φ ≤ 1 that keeps the
-    /// plane from the vertex's value to the centroid of every element around it within
-    /// the range of those elements' values (and the vertex's): Barth and Jespersen's
+    /// plane from the vertex's value (`vertex`, the fit's) to the centroid of every element
+    /// around it within the range of those elements' values and the vertex's, and to the
+    /// third points of those elements' edges from it within that range and the far end's
+    /// value (where the edge's cubic has its inner control points): Barth and Jespersen's
     /// limiter ("The design and application of upwind schemes on unstructured meshes",
     /// AIAA 89-0366, 1989). A fit beside a sliver or across a shadow edge not marked
     /// hard can tilt steeply where the values around the vertex are nearly equal: the
@@ -452,12 +469,11 @@ impl DisplayMesh {
     fn limit_gradients(
         &self,
         elements: &[Element],
-        values: &[Vec3],
+        vertex: &[Vec3],
         range: &[(Vec3, Vec3)],
         grads: &mut [[Vec3; 3]],
-        counts: impl Fn(usize, usize) -> bool,
     ) {
-        let mut phi = vec![Vec3::ONE; values.len()];
+        let mut phi = vec![Vec3::ONE; vertex.len()];
         // The largest φ that keeps a + φ·δ within [lo, hi], per channel.
         let limit = |phi: &mut Vec3, a: Vec3, delta: Vec3, lo: Vec3, hi: Vec3| {
             for ch in 0..3 {
@@ -475,10 +491,10 @@ impl DisplayMesh {
             let c = e.centroid();
             for (n, &k) in e.corners.iter().enumerate() {
                 let k = k as usize;
-                if !counts(i, k) {
+                if !self.counts(i, k) {
                     continue;
                 }
-                let a = values[k];
+                let a = vertex[k];
                 let (lo, hi) = (range[k].0.min(a), range[k].1.max(a));
                 let slope = |d: Vec3| along(&grads[k], d);
                 limit(&mut phi[k], a, slope(c - self.positions[k]), lo, hi);
@@ -486,7 +502,7 @@ impl DisplayMesh {
                 // a third of the way: within that range and the far end's value.
                 for j in [e.corners[(n + 1) % 3], e.corners[(n + 2) % 3]] {
                     let (j, d) = (j as usize, self.positions[j as usize] - self.positions[k]);
-                    let far = values[j];
+                    let far = vertex[j];
                     limit(&mut phi[k], a, slope(d / 3.0), lo.min(far), hi.max(far));
                 }
             }
@@ -505,9 +521,15 @@ impl DisplayMesh {
             .is_some_and(|s| s.vertex.get(k).copied().flatten().is_some())
     }
 
-    /// Vertex values and gradients for [`Reconstruction::Hermite`].
+    /// Vertex values and gradients for [`Reconstruction::Hermite`]: the fit's, with the
+    /// gradients limited (see `limit_gradients`; Gouraud uses no gradient).
     pub fn hermite(&self, elements: &[Element], values: &[Vec3]) -> Hermite {
-        let (mut vals, mut grads) = self.fit(elements, values);
+        let Fit {
+            values: mut vals,
+            gradients: mut grads,
+            range,
+        } = self.fit(elements, values);
+        self.limit_gradients(elements, &vals, &range, &mut grads);
         // T-vertices: the coarse edge's cubic at their parameter t on it (value, and slope
         // along it; the cubic Hermite basis), and across the edge the ends' slopes
         // interpolated linearly, since the coarse element's cross-edge slope is linear

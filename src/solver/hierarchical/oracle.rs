@@ -113,8 +113,9 @@ fn preview_cost(links: usize, elements: usize) -> usize {
 const PREVIEW_SWEEPS: usize = 8;
 
 /// What the previews of a round may cost in all, in links (see `preview_cost`) per ray
-/// the solve has cast (in the first round, nearly all of them the round's). A sweep costs about 12 ns a link on the Cornell box and 41 ns on
-/// Sponza, the round about 0.25 µs a ray on both (2 cores), so the previews take at most
+/// the solve has cast (in the first round, nearly all of them the round's). A sweep costs
+/// about 12 ns a link on the Cornell box and 41 ns on Sponza, the round about 0.25 µs a
+/// ray on both (2 cores), so the first round's previews take at most
 /// 5 % of the round on the Cornell box and 16 % on Sponza (whose previews meet the
 /// tolerance after one sweep: its sweeps converge in three). Measured on the Cornell box:
 /// at half a link per ray the early previews got two sweeps and were 43 % off the
@@ -873,16 +874,20 @@ impl Solver {
                     round.kept.len() + round.stuck.len() + round.work.len() + round.waiting.len();
                 let cost = preview_cost(cover, self.mesh.elements.len());
                 let first = round.previewed == 0;
-                let grown = round.threshold.is_finite()
-                    && if h.sweeps == 0 {
-                        cost >= 2 * round.previewed
-                    } else {
-                        cost as f64 >= LATER_PREVIEW_GROWTH * round.previewed as f64
-                    };
-                if first && h.sweeps > 0 {
+                let growth = if h.sweeps == 0 {
+                    2.0
+                } else {
+                    LATER_PREVIEW_GROWTH
+                };
+                let due = if first {
+                    h.sweeps == 0
+                } else {
+                    round.threshold.is_finite() && cost as f64 >= growth * round.previewed as f64
+                };
+                if first || due {
                     round.previewed = cost;
-                } else if (first && h.sweeps == 0) || (!first && grown) {
-                    round.previewed = cost;
+                }
+                if due {
                     let allowed = (self.stats.rays as f64 * PREVIEW_LINKS_PER_RAY) as usize;
                     let sweeps = (allowed.saturating_sub(round.preview_spent) / cost)
                         .clamp(1, PREVIEW_SWEEPS);

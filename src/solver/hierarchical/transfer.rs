@@ -383,10 +383,11 @@ struct Corners {
 /// refined every receiver hidden from any lit source down to the minimum size, whatever
 /// ε: the Cornell box at `--link-error 2` came to 36,574 leaves, 7,351 with this rule;
 /// converged at the default ε, 72,160 leaves and 5.1 M links in 20.2–20.4 s, then 65,083
-/// and 3.5 M in 14.4–14.9 s (run in turn, before the rounds went from coarse to fine). Dropping such links instead (nothing splits) took away light the
-/// receiver's corner saw: a floor node 2 mm from the red wall lost a quarter of the
-/// lamp, which the tall block hides from the node's six points but not from all of it,
-/// and came out 16 % too dark.
+/// and 3.5 M in 14.4–14.9 s (run in turn, before the rounds went from coarse to fine).
+/// Dropping such links instead (nothing splits) took away light the receiver's corner
+/// saw: a floor node 2 mm from the red wall lost a quarter of the lamp, which the tall
+/// block hides from the node's six points but not from all of it, and came out 16 % too
+/// dark.
 fn seen_at_corners(
     bvh: &Bvh,
     eps: f32,
