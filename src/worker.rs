@@ -11,7 +11,7 @@
 
 use crate::accel::Bvh;
 use crate::files::WriteError;
-use crate::mesh::{Mesh, MeshSettings, surface_values};
+use crate::mesh::{Hermite, Mesh, MeshSettings, surface_values};
 use crate::pipeline::Prepared;
 use crate::scene::{Image, Material, OpenError, Outside, Scene};
 use crate::solver::gather::{GatherSettings, Gatherer};
@@ -65,6 +65,10 @@ pub enum Command {
     },
     /// Whether snapshots include Cohen et al.'s ambient term (progressive only).
     SetAmbient(bool),
+    /// Whether snapshots carry the Hermite values and slopes at the display vertices
+    /// (what Hermite display draws; they cost the worker about twice what the Gouraud
+    /// values do, so only while the display asks). Turning it on sends a snapshot.
+    SetHermite(bool),
     /// Write the current solution as a baked .glb (the light per vertex under the edited
     /// materials and their textures; `export`).
     Export {
@@ -114,8 +118,9 @@ pub enum Event {
         warnings: Vec<String>,
     },
     /// The newest radiosity B per element (with the ambient term for progressive display
-    /// unless turned off); the irradiance H = (B − E)/ρ it came from, per element and as
-    /// Gouraud values at the display mesh's vertices (what the display reconstructs); and
+    /// unless turned off); the irradiance H = (B − E)/ρ it came from, per element, as
+    /// Gouraud values at the display mesh's vertices and, after `SetHermite(true)`, as
+    /// their Hermite values and slopes (what the display reconstructs); and
     /// the reflectance ρ and emitted radiosity E per element it was solved with (the same
     /// `Arc`s until an edit changes them).
     Snapshot {
@@ -124,6 +129,7 @@ pub enum Event {
         radiosity: Arc<[Vec3]>,
         irradiance: Arc<[Vec3]>,
         vertex: Arc<[Vec3]>,
+        hermite: Option<Arc<Hermite>>,
         reflectance: Arc<[Vec3]>,
         emission: Arc<[Vec3]>,
         stats: Stats,
@@ -302,6 +308,8 @@ struct Job {
     scene: Scene,
     mesh_settings: MeshSettings,
     ambient: bool,
+    /// Whether snapshots carry the Hermite data (`Command::SetHermite`).
+    hermite: bool,
     snapshot_cost: Duration,
     /// The solver's mesh version last sent to the UI.
     mesh_version: u64,
@@ -326,6 +334,8 @@ fn run(
         wake();
     };
     let mut job: Option<Job> = None;
+    // `Command::SetHermite`, for this job and the next ones.
+    let mut hermite = false;
     loop {
         // Idle (no job, paused or converged): block for the next command. Working: take
         // what has arrived and step.
@@ -359,7 +369,9 @@ fn run(
                         load(id, &source, outside, &mesh, solver, &flag, &send)
                     }));
                     match result {
-                        Ok(Ok(Some(j))) => job = Some(j),
+                        Ok(Ok(Some(j))) => {
+                            job = Some(Job { hermite, ..j });
+                        }
                         Ok(Ok(None)) => {} // cancelled by a newer load
                         Ok(Err(error)) => send(Event::Failed { job: id, error }),
                         Err(panic) => send(Event::Failed {
@@ -393,6 +405,15 @@ fn run(
                     if let Some(j) = &mut job {
                         j.ambient = on;
                         snapshot(j, &send);
+                    }
+                }
+                Command::SetHermite(on) => {
+                    hermite = on;
+                    if let Some(j) = &mut job {
+                        j.hermite = on;
+                        if on && j.version > 0 {
+                            snapshot(j, &send);
+                        }
                     }
                 }
                 Command::SetMaterial {
@@ -528,7 +549,15 @@ fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
     let (rho, e) = (j.solver.reflectance(), j.solver.emission());
     let irradiance = crate::solver::irradiance(&radiosity, &rho, &e);
     let mesh = j.solver.mesh();
-    let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
+    let (vertex, hermite) = if j.hermite {
+        let (vertex, hermite) = mesh.display.smooth_values(&mesh.elements, &irradiance);
+        (vertex, Some(Arc::new(hermite)))
+    } else {
+        (
+            mesh.display.vertex_values(&mesh.elements, &irradiance),
+            None,
+        )
+    };
     let (reflectance, emission) = match j.surfaces.take() {
         Some((r, m)) if *r == *rho && *m == *e => (r, m),
         _ => (Arc::from(&*rho), Arc::from(&*e)),
@@ -542,6 +571,7 @@ fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
         radiosity: radiosity.into(),
         irradiance: irradiance.into(),
         vertex: vertex.into(),
+        hermite,
         reflectance,
         emission,
         stats: j.solver.stats().clone(),
@@ -742,6 +772,7 @@ fn load(
         scene,
         mesh_settings: mesh.clone(),
         ambient: true,
+        hermite: false,
         snapshot_cost: Duration::ZERO,
         mesh_version: 0,
         prepared,

@@ -245,6 +245,12 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         h.state().display().reconstruction,
         radiosity::mesh::Reconstruction::Hermite
     );
+    // The worker sends a snapshot with the vertex slopes once asked.
+    assert!(
+        step_until(&mut h, 30.0, |a| a.hermite_shown()),
+        "no Hermite data from the worker in 30 s"
+    );
+    h.step();
     let hermite = h.render().expect("render");
     hermite
         .save(screenshots().join("kittest_hermite.png"))

@@ -401,3 +401,54 @@ fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
     assert_eq!(std::fs::read(&opened).unwrap(), original);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn snapshots_carry_the_hermite_vertex_data_while_asked() {
+    // Hermite display asks the worker for its vertex data (`Command::SetHermite`): the
+    // snapshot sent at once carries the values and slopes `DisplayMesh::hermite` makes of
+    // the snapshot's irradiance, and the Gouraud values of `vertex_values`; once the ask
+    // is withdrawn, snapshots carry none.
+    let worker = Worker::spawn(|| {});
+    worker.send(load(1, "builtin:cornell", SolverSettings::default()));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let mesh = events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            Event::Refined { mesh, .. } | Event::Loaded { mesh, .. } => Some(Arc::clone(mesh)),
+            _ => None,
+        })
+        .expect("a mesh");
+    for e in &events {
+        if let Event::Snapshot { hermite, .. } = e {
+            assert!(hermite.is_none(), "Hermite data before they were asked for");
+        }
+    }
+    worker.send(Command::SetHermite(true));
+    let events = until(&worker, |e| matches!(e, Event::Snapshot { .. }));
+    let Some(Event::Snapshot {
+        irradiance,
+        vertex,
+        hermite: Some(hermite),
+        ..
+    }) = events.last()
+    else {
+        panic!("the snapshot after SetHermite(true) has no Hermite data");
+    };
+    let want = mesh.display.hermite(&mesh.elements, irradiance);
+    assert_eq!(hermite.values, want.values);
+    assert_eq!(hermite.gradients, want.gradients);
+    assert_eq!(
+        **vertex,
+        *mesh.display.vertex_values(&mesh.elements, irradiance)
+    );
+    worker.send(Command::SetHermite(false));
+    worker.send(Command::SetAmbient(true));
+    let events = until(&worker, |e| matches!(e, Event::Snapshot { .. }));
+    assert!(matches!(
+        events.last(),
+        Some(Event::Snapshot { hermite: None, .. })
+    ));
+}

@@ -165,7 +165,20 @@ impl DisplayMesh {
     /// plane through the values of the elements that use it (see `fit`); T-vertices take
     /// their coarse edge's value at their parameter on it.
     pub fn vertex_values(&self, elements: &[Element], values: &[Vec3]) -> Vec<Vec3> {
-        let mut values = self.fit(elements, values).values;
+        self.gouraud(self.fit(elements, values).values)
+    }
+
+    /// Both smooth reconstructions' vertex data from one fit: the Gouraud vertex values
+    /// ([`DisplayMesh::vertex_values`]) and the Hermite data ([`DisplayMesh::hermite`]),
+    /// what the viewer's snapshots carry.
+    pub fn smooth_values(&self, elements: &[Element], values: &[Vec3]) -> (Vec<Vec3>, Hermite) {
+        let fit = self.fit(elements, values);
+        let gouraud = self.gouraud(fit.values.clone());
+        (gouraud, self.hermite_from(elements, fit))
+    }
+
+    /// The fit's values with each T-vertex on its coarse edge's line.
+    fn gouraud(&self, mut values: Vec<Vec3>) -> Vec<Vec3> {
         self.resolve_hanging(|h| {
             let [a, b] = h.edge.map(|i| values[i as usize]);
             let value = a + (b - a) * h.t;
@@ -524,11 +537,15 @@ impl DisplayMesh {
     /// Vertex values and gradients for [`Reconstruction::Hermite`]: the fit's, with the
     /// gradients limited (see `limit_gradients`; Gouraud uses no gradient).
     pub fn hermite(&self, elements: &[Element], values: &[Vec3]) -> Hermite {
+        self.hermite_from(elements, self.fit(elements, values))
+    }
+
+    fn hermite_from(&self, elements: &[Element], fit: Fit) -> Hermite {
         let Fit {
             values: mut vals,
             gradients: mut grads,
             range,
-        } = self.fit(elements, values);
+        } = fit;
         self.limit_gradients(elements, &vals, &range, &mut grads);
         // T-vertices: the coarse edge's cubic at their parameter t on it (value, and slope
         // along it; the cubic Hermite basis), and across the edge the ends' slopes

@@ -120,6 +120,8 @@ pub struct App {
     pub(super) auto_exposure: bool,
     /// The ambient term in the progressive display.
     pub(super) ambient: bool,
+    /// Whether the worker was asked for the Hermite data (`Command::SetHermite`).
+    pub(super) hermite_asked: bool,
     /// The status bar's last message.
     pub(super) status: String,
     /// Recently opened scene files, newest first.
@@ -164,6 +166,7 @@ impl App {
             },
             auto_exposure: true,
             ambient: true,
+            hermite_asked: false,
             status: String::new(),
             recent: load_recent(),
             prompt: None,
@@ -212,6 +215,12 @@ impl App {
     }
     pub fn wireframe(&self) -> bool {
         self.display.wireframe
+    }
+    /// Whether the 3D view draws Hermite shading: chosen, and its data on the GPU (until
+    /// then it draws Gouraud).
+    pub fn hermite_shown(&self) -> bool {
+        self.display.reconstruction == crate::mesh::Reconstruction::Hermite
+            && self.session.uploads.hermite != 0
     }
     pub fn display(&self) -> &Display {
         &self.display
@@ -308,6 +317,7 @@ impl App {
                     radiosity,
                     irradiance,
                     vertex,
+                    hermite,
                     reflectance,
                     emission,
                     stats,
@@ -329,6 +339,7 @@ impl App {
                             radiosity,
                             irradiance,
                             vertex,
+                            hermite,
                             reflectance,
                             emission,
                         });
@@ -427,7 +438,7 @@ impl eframe::App for App {
         self.handle_events();
         self.upload();
         self.meter_view();
-        self.upload_bezier();
+        self.upload_hermite();
         self.keys(&ctx);
         self.files_dropped(&ctx);
         self.screenshots(&ctx);

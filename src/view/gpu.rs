@@ -1,6 +1,6 @@
 //! What the GPU holds and when it draws: the renderer with its offscreen target and egui
 //! texture ([`Gpu`], for the whole window), the opened scene's mesh, snapshot values and
-//! Hermite control points on the GPU ([`Uploads`], per scene), snapshot uploads throttled
+//! Hermite vertex slopes on the GPU ([`Uploads`], per scene), snapshot uploads throttled
 //! by their own measured cost, auto exposure after each upload, and the 3D picture drawn
 //! again only when what it depends on changes.
 
@@ -9,6 +9,7 @@ use super::camera::Camera;
 use super::render::{Display, GpuMesh, Renderer, Target};
 use super::textures::{GpuTextures, TextureMemory};
 use crate::mesh::{Mesh, Reconstruction};
+use crate::worker::Command;
 use eframe::egui;
 use eframe::egui_wgpu;
 use glam::Vec3;
@@ -40,8 +41,9 @@ pub(super) struct Uploads {
     surfaces: Option<crate::worker::Surfaces>,
     /// The snapshot version whose values are on the GPU; 0 while `mesh` has none.
     pub(super) uploaded: u64,
-    /// The snapshot version whose Hermite control points are on the GPU.
-    bezier: u64,
+    /// The snapshot version whose Hermite vertex slopes are on the GPU (0: none for this
+    /// mesh).
+    pub(super) hermite: u64,
     /// What the last snapshot upload cost, and when it ended.
     cost: Duration,
     last: Option<Instant>,
@@ -53,7 +55,7 @@ struct DrawKey {
     camera: Camera,
     display: Display,
     uploaded: u64,
-    bezier: u64,
+    hermite: u64,
     size: [u32; 2],
 }
 
@@ -110,11 +112,18 @@ impl Gpu {
             }
             self.target = Some(target);
         }
+        // Hermite display shows Gouraud until the worker's first Hermite data for this
+        // mesh are on the GPU, and then the newest it sent.
+        let mut display = *display;
+        if display.reconstruction == Reconstruction::Hermite && uploads.hermite == 0 {
+            display.reconstruction = Reconstruction::Gouraud;
+        }
+        let display = &display;
         let key = DrawKey {
             camera: *camera,
             display: *display,
             uploaded: uploads.uploaded,
-            bezier: uploads.bezier,
+            hermite: uploads.hermite,
             size,
         };
         let urgent = self.drawn.is_none_or(|k| {
@@ -125,7 +134,7 @@ impl Gpu {
                 || k.size != size
                 || d != *display
                 || (k.uploaded == 0) != (uploads.uploaded == 0)
-                || k.bezier != uploads.bezier
+                || k.hermite != uploads.hermite
         });
         // The frame after a draw: the interval since it started is the draw's cost.
         if let Some(t) = self.draw_started.take() {
@@ -174,7 +183,7 @@ impl App {
             );
         }
         u.uploaded = 0;
-        u.bezier = 0;
+        u.hermite = 0;
         u.surfaces = None;
         s.snapshot = None;
     }
@@ -232,17 +241,23 @@ impl App {
         }
     }
 
-    /// Hermite display needs the control points of the uploaded snapshot: computed here
-    /// when the mode is on and they are missing (the other modes never pay for them).
-    pub(super) fn upload_bezier(&mut self) {
+    /// Hermite display needs the vertex values and slopes of the uploaded snapshot: the
+    /// worker adds them to its snapshots while the display asks (`Command::SetHermite`),
+    /// and they are uploaded when the mode is on and they are missing, so the other modes
+    /// never pay for them.
+    pub(super) fn upload_hermite(&mut self) {
+        let want = self.display.reconstruction == Reconstruction::Hermite;
+        if want != self.hermite_asked {
+            self.worker.send(Command::SetHermite(want));
+            self.hermite_asked = want;
+            // Snapshots without it may follow: what is on the GPU would go stale.
+            self.session.uploads.hermite = 0;
+        }
         let s = &mut self.session;
-        if self.display.reconstruction != Reconstruction::Hermite
-            || s.uploads.uploaded == 0
-            || s.uploads.bezier == s.uploads.uploaded
-        {
+        if !want || s.uploads.uploaded == 0 || s.uploads.hermite == s.uploads.uploaded {
             return;
         }
-        let (Some(g), Some(snap), Some(mesh)) = (&self.gpu, &s.snapshot, &s.mesh) else {
+        let (Some(g), Some(snap)) = (&self.gpu, &s.snapshot) else {
             return;
         };
         let Some(gm) = &s.uploads.mesh else { return };
@@ -251,12 +266,13 @@ impl App {
             self.status = "too many elements for Hermite display on this device".into();
             return;
         }
-        if snap.version != s.uploads.uploaded || snap.irradiance.len() != mesh.elements.len() {
-            return;
-        }
-        let points = super::render::bezier_points(mesh, &snap.irradiance);
-        if gm.set_bezier(&g.state.queue, &points) {
-            s.uploads.bezier = s.uploads.uploaded;
+        // A snapshot made before the worker heard the request has no Hermite data: the
+        // next one will.
+        if snap.version == s.uploads.uploaded
+            && let Some(hermite) = &snap.hermite
+            && gm.set_hermite(&g.state.queue, hermite)
+        {
+            s.uploads.hermite = s.uploads.uploaded;
         }
     }
 

@@ -7,13 +7,16 @@
 //! once per mesh, sorted into one draw per combination of textures; a snapshot only
 //! writes two `Rgba32Float` textures (the irradiance H per element and per display
 //! vertex), which the vertex shader reads with `textureLoad`, so streaming the solution
-//! costs 16 bytes per element and vertex, not a vertex-buffer rebuild. The reflectance and
+//! costs 16 bytes per element and vertex, not a vertex-buffer rebuild. Hermite display
+//! adds 48 bytes per display vertex (its value and slopes), from which the fragment
+//! shader builds each element's Clough–Tocher control points (with the element's corners
+//! and edges, 48 bytes per element written with the mesh). The reflectance and
 //! emission per element (which edits change) are a third such texture. The shader shows
 //! B = ρ(uv)·H + E(uv) (`shader.wgsl`).
 
 use super::camera::Camera;
 use super::textures::GpuTextures;
-use crate::mesh::{Bezier, Mesh, Reconstruction};
+use crate::mesh::{Hermite, Mesh, Reconstruction};
 use crate::scene::{Material, Slot, TextureRef};
 use anyhow::{Context, Result, anyhow};
 use bytemuck::{Pod, Zeroable};
@@ -113,13 +116,31 @@ pub struct GpuMesh {
     draws: Vec<(std::ops::Range<u32>, wgpu::BindGroup)>,
     element_values: wgpu::Texture,
     vertex_values: wgpu::Texture,
-    bezier: Option<wgpu::Texture>,
+    /// Hermite display: per display vertex the value and slopes ([`HERMITE_TEXELS`]), and
+    /// per element its corners' vertices and two edges, which the shader builds its
+    /// Clough–Tocher control points from (`None` when the device cannot hold them).
+    hermite: Option<HermiteTextures>,
     surfaces: wgpu::Texture,
     bind_group: wgpu::BindGroup,
     /// The mesh it was made from (to check snapshot sizes).
     pub elements: usize,
     pub display_vertices: usize,
 }
+
+/// The textures of Hermite display.
+struct HermiteTextures {
+    vertices: wgpu::Texture,
+    elements: wgpu::Texture,
+}
+
+/// RGBA texels per display vertex for Hermite display: its value and the gradient of each
+/// channel (12 floats).
+const HERMITE_TEXELS: usize = 3;
+
+/// RGBA texels per element for Hermite display: its corners' display vertices (exact in
+/// f32 below 2²⁴) and the edges from its first corner to its second and from its second
+/// to its third, in the mesh frame.
+const CORNER_TEXELS: usize = 3;
 
 /// An offscreen colour + depth target.
 pub struct Target {
@@ -205,9 +226,6 @@ fn write_values(queue: &wgpu::Queue, texture: &wgpu::Texture, values: &[Vec3]) {
 
 /// Writes `data` (one RGBA texel each, in index order) into the first rows of `texture`,
 /// padding the last row.
-/// RGBA texels per element for the 19 Clough–Tocher control points (57 floats).
-const BEZIER_TEXELS: usize = 15;
-
 fn write_texels(queue: &wgpu::Queue, texture: &wgpu::Texture, mut data: Vec<[f32; 4]>) {
     if data.is_empty() {
         return;
@@ -267,6 +285,10 @@ impl Renderer {
                 },
                 texture_entry(4),
                 texture_entry(5),
+                wgpu::BindGroupLayoutEntry {
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ..texture_entry(6)
+                },
             ],
         });
         let image_entry = |binding| wgpu::BindGroupLayoutEntry {
@@ -383,15 +405,32 @@ impl Renderer {
             mesh.display.positions.len(),
             "display-vertex radiosity",
         );
-        // Hermite control points, 15 texels per element, when the device can hold them.
-        let texels = mesh.elements.len() * BEZIER_TEXELS;
-        let bezier = ((texels as u64).div_ceil(VALUE_WIDTH as u64)
-            <= device.limits().max_texture_dimension_2d as u64)
-            .then(|| value_texture(device, texels, "Hermite control points"));
-        let bezier_view = bezier
-            .as_ref()
-            .unwrap_or(&element_values)
-            .create_view(&Default::default());
+        // Hermite data, when the device can hold it and the vertex indices are exact.
+        let fits = |texels: usize| {
+            (texels as u64).div_ceil(VALUE_WIDTH as u64)
+                <= device.limits().max_texture_dimension_2d as u64
+        };
+        let vertices = mesh.display.positions.len();
+        let hermite = (fits(vertices * HERMITE_TEXELS)
+            && fits(mesh.elements.len() * CORNER_TEXELS)
+            && vertices < 1 << 24)
+            .then(|| {
+                let elements = value_texture(
+                    device,
+                    mesh.elements.len() * CORNER_TEXELS,
+                    "Hermite element corners",
+                );
+                write_texels(queue, &elements, hermite_corners(mesh));
+                HermiteTextures {
+                    vertices: value_texture(device, vertices * HERMITE_TEXELS, "Hermite slopes"),
+                    elements,
+                }
+            });
+        let view = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let (hermite_vertices, hermite_elements) = match &hermite {
+            Some(h) => (view(&h.vertices), view(&h.elements)),
+            None => (view(&element_values), view(&element_values)),
+        };
         let surfaces = value_texture(device, 2 * mesh.elements.len(), "element surfaces");
         let inverse_means = value_texture(device, 2 * mesh.elements.len(), "texture means");
         write_values(queue, &inverse_means, &inverse_texture_means(mesh));
@@ -417,7 +456,7 @@ impl Renderer {
                 },
                 wgpu::BindGroupEntry {
                     binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&bezier_view),
+                    resource: wgpu::BindingResource::TextureView(&hermite_vertices),
                 },
                 wgpu::BindGroupEntry {
                     binding: 4,
@@ -430,6 +469,10 @@ impl Renderer {
                     resource: wgpu::BindingResource::TextureView(
                         &inverse_means.create_view(&Default::default()),
                     ),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: wgpu::BindingResource::TextureView(&hermite_elements),
                 },
             ],
         });
@@ -468,7 +511,7 @@ impl Renderer {
             draws,
             element_values,
             vertex_values,
-            bezier,
+            hermite,
             surfaces,
             bind_group,
             elements: mesh.elements.len(),
@@ -587,32 +630,51 @@ impl GpuMesh {
         true
     }
 
-    /// Whether this mesh can show Hermite reconstruction (its control points fit a texture).
+    /// Whether this mesh can show Hermite reconstruction (its data fit the textures).
     pub fn supports_hermite(&self) -> bool {
-        self.bezier.is_some()
+        self.hermite.is_some()
     }
 
-    /// Writes the Hermite control points of every element (see [`Bezier`]).
-    pub fn set_bezier(&self, queue: &wgpu::Queue, points: &[Bezier]) -> bool {
-        let Some(t) = &self.bezier else { return false };
-        if points.len() != self.elements {
+    /// Writes the Hermite values and slopes at the display vertices (see [`Hermite`];
+    /// ignored when the sizes do not match the mesh).
+    pub fn set_hermite(&self, queue: &wgpu::Queue, h: &Hermite) -> bool {
+        let Some(t) = &self.hermite else { return false };
+        if h.values.len() != self.display_vertices || h.gradients.len() != self.display_vertices {
             return false;
         }
-        // 57 floats per element padded to 60: 15 RGBA texels.
-        let mut floats: Vec<f32> = Vec::with_capacity(points.len() * BEZIER_TEXELS * 4);
-        for b in points {
-            for p in b {
-                floats.extend_from_slice(&p.to_array());
-            }
-            floats.extend_from_slice(&[0.0; BEZIER_TEXELS * 4 - 57]);
-        }
-        let texels = floats
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
+        let texels = h
+            .values
+            .iter()
+            .zip(&h.gradients)
+            .flat_map(|(v, [r, g, b])| {
+                [
+                    [v.x, v.y, v.z, r.x],
+                    [r.y, r.z, g.x, g.y],
+                    [g.z, b.x, b.y, b.z],
+                ]
+            })
             .collect();
-        write_texels(queue, t, texels);
+        write_texels(queue, &t.vertices, texels);
         true
     }
+}
+
+/// Per element, what the shader's Clough–Tocher element needs besides the vertex data
+/// ([`CORNER_TEXELS`]).
+fn hermite_corners(mesh: &Mesh) -> Vec<[f32; 4]> {
+    mesh.elements
+        .iter()
+        .flat_map(|e| {
+            let [a, b, c] = e.corners.map(|v| v as f32);
+            let [p1, p2, p3] = e.verts;
+            let (e12, e23) = (p2 - p1, p3 - p2);
+            [
+                [a, b, c, 0.0],
+                [e12.x, e12.y, e12.z, 0.0],
+                [e23.x, e23.y, e23.z, 0.0],
+            ]
+        })
+        .collect()
 }
 
 /// Why `adapter` cannot draw the view, if it cannot. The colour target is viewed both as
@@ -761,23 +823,22 @@ pub fn render_image(
     let gpu = renderer.upload(device, queue, mesh, materials, &textures);
     let irradiance =
         crate::solver::irradiance(solution.radiosity, solution.reflectance, solution.emission);
-    let vertex = mesh.display.vertex_values(&mesh.elements, &irradiance);
+    let vertex = if display.reconstruction == Reconstruction::Hermite {
+        let (vertex, hermite) = mesh.display.smooth_values(&mesh.elements, &irradiance);
+        if !gpu.set_hermite(queue, &hermite) {
+            return Err(anyhow!(
+                "too many elements for Hermite display on this device (use --mode gouraud)"
+            ));
+        }
+        vertex
+    } else {
+        mesh.display.vertex_values(&mesh.elements, &irradiance)
+    };
     gpu.set_values(queue, &irradiance, &vertex);
     gpu.set_surfaces(queue, solution.reflectance, solution.emission);
-    if display.reconstruction == Reconstruction::Hermite {
-        gpu.set_bezier(queue, &bezier_points(mesh, &irradiance));
-    }
     let target = Target::new(device, size);
     renderer.render(device, queue, &target, Some(&gpu), camera, display);
     read_back(device, queue, &target)
-}
-
-/// The Hermite control points of every element for element values `values`.
-pub fn bezier_points(mesh: &Mesh, values: &[Vec3]) -> Vec<Bezier> {
-    let h = mesh.display.hermite(&mesh.elements, values);
-    (0..mesh.elements.len() as u32)
-        .map(|e| crate::mesh::DisplayMesh::bezier(&mesh.elements, &h, e))
-        .collect()
 }
 
 /// Per element, its patch's [`crate::mesh::PatchTexture::inverse_means`] (1 where untextured).

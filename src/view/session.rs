@@ -9,7 +9,7 @@ use super::edits::Edits;
 use super::final_gather::Pass;
 use super::gpu::Uploads;
 use crate::accel::Bvh;
-use crate::mesh::Mesh;
+use crate::mesh::{Hermite, Mesh};
 use crate::scene::{Image, Material};
 use crate::solver::gather::Gatherer;
 use crate::solver::{ElementLinks, Stats};
@@ -23,9 +23,11 @@ pub(super) struct Snap {
     pub(super) version: u64,
     /// Radiosity B per element.
     pub(super) radiosity: Arc<[Vec3]>,
-    /// Irradiance H per element and its Gouraud values per display-mesh vertex.
+    /// Irradiance H per element, its Gouraud values per display-mesh vertex and, while
+    /// Hermite display asks for them, its Hermite values and slopes there.
     pub(super) irradiance: Arc<[Vec3]>,
     pub(super) vertex: Arc<[Vec3]>,
+    pub(super) hermite: Option<Arc<Hermite>>,
     /// Reflectance ρ and emitted radiosity E per element, as solved with.
     pub(super) reflectance: Arc<[Vec3]>,
     pub(super) emission: Arc<[Vec3]>,

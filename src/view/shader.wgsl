@@ -1,6 +1,7 @@
 // The 3D view: one vertex per element corner. The solution comes as the irradiance H in
-// two textures (per element for flat reconstruction, per display vertex for Gouraud), so a
-// new snapshot is a texture upload, never a vertex-buffer rebuild. The displayed
+// textures (per element for flat reconstruction, per display vertex for Gouraud, and per
+// display vertex with its slopes for Hermite), so a new snapshot is a texture upload,
+// never a vertex-buffer rebuild. The displayed
 // radiosity is B = ρ(uv)·H + E(uv): with textures on, ρ(uv) = ρ_e · T_base(uv) / mean_e
 // (ρ_e the element's reflectance as solved, mean_e the texture's mean over its triangle,
 // which ρ_e already carries) and likewise E(uv); with textures off, B = ρ_e·H + E_e, the
@@ -32,12 +33,16 @@ struct Uniforms {
 @group(0) @binding(0) var<uniform> u: Uniforms;
 @group(0) @binding(1) var element_values: texture_2d<f32>;
 @group(0) @binding(2) var vertex_values: texture_2d<f32>;
-// Hermite: per element 19 control points (RGB), packed as 57 floats in 15 RGBA texels.
-@group(0) @binding(3) var bezier_points: texture_2d<f32>;
+// Hermite: per display vertex its value and the gradient of each channel (12 floats in
+// 3 texels).
+@group(0) @binding(3) var hermite_vertices: texture_2d<f32>;
 // Per element 2 texels: reflectance ρ_e and emitted radiosity E_e as solved.
 @group(0) @binding(4) var surfaces: texture_2d<f32>;
 // Per element 2 texels: 1 / the base and emissive textures' means over its triangle.
 @group(0) @binding(5) var inverse_means: texture_2d<f32>;
+// Hermite: per element 3 texels: its corners' display vertices, the edge from its first
+// corner to its second and the edge from its second to its third.
+@group(0) @binding(6) var hermite_elements: texture_2d<f32>;
 // The textures of the draw's materials (1×1 white where a material has none).
 @group(1) @binding(0) var base_texture: texture_2d<f32>;
 @group(1) @binding(1) var base_sampler: sampler;
@@ -160,36 +165,87 @@ fn texel(t: texture_2d<f32>, i: u32) -> vec4<f32> {
     return textureLoad(t, vec2<i32>(i32(i % u.width), i32(i / u.width)), 0);
 }
 
-// Clough–Tocher element (see `Bezier` in src/mesh/display.rs): 19 control points in 15
-// texels, evaluated in the sub-triangle opposite the corner with the smallest barycentric.
+// A display vertex's Hermite data: its value and the gradients of the red, green and blue
+// channels.
+struct Slopes {
+    value: vec3<f32>,
+    // Columns: the gradient of each channel, so that `d * g` is the slope along d.
+    g: mat3x3<f32>,
+};
+
+fn slopes(v: u32) -> Slopes {
+    let a = texel(hermite_vertices, 3u * v);
+    let b = texel(hermite_vertices, 3u * v + 1u);
+    let c = texel(hermite_vertices, 3u * v + 2u);
+    var s: Slopes;
+    s.value = a.xyz;
+    s.g = mat3x3<f32>(vec3<f32>(a.w, b.x, b.y), vec3<f32>(b.z, b.w, c.x), vec3<f32>(c.y, c.z, c.w));
+    return s;
+}
+
+// -e·edge / |edge|²: the share of `edge` in the direction e towards the centroid.
+fn gamma(e: vec3<f32>, edge: vec3<f32>) -> f32 {
+    return -dot(e, edge) / max(dot(edge, edge), 1.17549435e-38);
+}
+
+// Clough–Tocher element (`DisplayMesh::bezier` in src/mesh/display.rs, step by step): its
+// 19 control points from the corners' values and slopes, evaluated in the sub-triangle
+// opposite the corner with the smallest barycentric.
 fn hermite(e: u32, bary: vec3<f32>) -> vec3<f32> {
-    var f: array<f32, 60>;
-    for (var k = 0u; k < 15u; k++) {
-        let t = texel(bezier_points, e * 15u + k);
-        f[4u * k] = t.x;
-        f[4u * k + 1u] = t.y;
-        f[4u * k + 2u] = t.z;
-        f[4u * k + 3u] = t.w;
-    }
+    let corners = texel(hermite_elements, 3u * e);
+    let e12 = texel(hermite_elements, 3u * e + 1u).xyz;
+    let e23 = texel(hermite_elements, 3u * e + 2u).xyz;
+    let e31 = -(e12 + e23);
+    let v1 = slopes(u32(round(corners.x)));
+    let v2 = slopes(u32(round(corners.y)));
+    let v3 = slopes(u32(round(corners.z)));
+    // Edges: the Hermite cubic of the end values and slopes.
+    let c3000 = v1.value;
+    let c0300 = v2.value;
+    let c0030 = v3.value;
+    let c2100 = v1.value + (e12 * v1.g) / 3.0;
+    let c2010 = v1.value - (e31 * v1.g) / 3.0;
+    let c1200 = v2.value - (e12 * v2.g) / 3.0;
+    let c0210 = v2.value + (e23 * v2.g) / 3.0;
+    let c1020 = v3.value + (e31 * v3.g) / 3.0;
+    let c0120 = v3.value - (e23 * v3.g) / 3.0;
+    // Next to each corner towards the centroid: the corner's tangent plane.
+    let c2001 = (c2100 + c2010 + c3000) / 3.0;
+    let c0201 = (c1200 + c0300 + c0210) / 3.0;
+    let c0021 = (c1020 + c0120 + c0030) / 3.0;
+    // Cross-edge slopes linear along each edge.
+    let e14 = (e12 - e31) / 3.0;
+    let e24 = (e23 - e12) / 3.0;
+    let e34 = (e31 - e23) / 3.0;
+    let q1 = gamma(e24, e23);
+    let q2 = gamma(e34, e31);
+    let q3 = gamma(e14, e12);
+    let c0111 = (((c0210 - c0120) * 3.0 - c0300 + c0030) * q1
+        + (c0210 * 2.0 - c0300 - c0120 + c0021 + c0201)) * 0.5;
+    let c1011 = (((c1020 - c2010) * 3.0 - c0030 + c3000) * q2
+        + (c1020 * 2.0 - c0030 - c2010 + c2001 + c0021)) * 0.5;
+    let c1101 = (((c2100 - c1200) * 3.0 - c3000 + c0300) * q3
+        + (c2100 * 2.0 - c3000 - c1200 + c2001 + c0201)) * 0.5;
+    // Inner points: C¹ between the three sub-triangles.
+    let c1002 = (c1101 + c1011 + c2001) / 3.0;
+    let c0102 = (c1101 + c0111 + c0201) / 3.0;
+    let c0012 = (c1011 + c0111 + c0021) / 3.0;
+    let c0003 = (c1002 + c0102 + c0012) / 3.0;
     let m = min(bary.x, min(bary.y, bary.z));
     let b1 = bary.x - m;
     let b2 = bary.y - m;
     let b3 = bary.z - m;
     let b4 = 3.0 * m;
-    let w = array<f32, 19>(
-        b1 * b1 * b1, b2 * b2 * b2, b3 * b3 * b3,
-        3.0 * b1 * b1 * b2, 3.0 * b1 * b1 * b3, 3.0 * b1 * b2 * b2,
-        3.0 * b2 * b2 * b3, 3.0 * b1 * b3 * b3, 3.0 * b2 * b3 * b3,
-        3.0 * b1 * b1 * b4, 3.0 * b2 * b2 * b4, 3.0 * b3 * b3 * b4,
-        6.0 * b1 * b2 * b4, 6.0 * b1 * b3 * b4, 6.0 * b2 * b3 * b4,
-        3.0 * b1 * b4 * b4, 3.0 * b2 * b4 * b4, 3.0 * b3 * b4 * b4,
-        b4 * b4 * b4,
-    );
-    var b = vec3<f32>(0.0);
-    for (var k = 0u; k < 19u; k++) {
-        b += w[k] * vec3<f32>(f[3u * k], f[3u * k + 1u], f[3u * k + 2u]);
-    }
-    return b;
+    return c3000 * (b1 * b1 * b1) + c0300 * (b2 * b2 * b2) + c0030 * (b3 * b3 * b3)
+        + c2100 * (3.0 * b1 * b1 * b2) + c2010 * (3.0 * b1 * b1 * b3)
+        + c1200 * (3.0 * b1 * b2 * b2) + c0210 * (3.0 * b2 * b2 * b3)
+        + c1020 * (3.0 * b1 * b3 * b3) + c0120 * (3.0 * b2 * b3 * b3)
+        + c2001 * (3.0 * b1 * b1 * b4) + c0201 * (3.0 * b2 * b2 * b4)
+        + c0021 * (3.0 * b3 * b3 * b4)
+        + c1101 * (6.0 * b1 * b2 * b4) + c1011 * (6.0 * b1 * b3 * b4)
+        + c0111 * (6.0 * b2 * b3 * b4)
+        + c1002 * (3.0 * b1 * b4 * b4) + c0102 * (3.0 * b2 * b4 * b4)
+        + c0012 * (3.0 * b3 * b4 * b4) + c0003 * (b4 * b4 * b4);
 }
 
 @fragment
