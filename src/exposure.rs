@@ -2,7 +2,7 @@
 //! `radiosity render` and the baked export (which bakes it into the file's colours).
 
 use crate::accel::Bvh;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, luminance};
 use glam::Vec3;
 
 /// The value at quantile `q` ∈ [0, 1] of `v` (sorted in place; 0 for an empty slice).
@@ -37,11 +37,6 @@ pub fn auto_exposure(mesh: &Mesh, radiosity: &[Vec3]) -> Option<(f32, (f32, f32)
     }
     let p95 = percentile(&mut lit, 0.95);
     Some((ev_for(p95), (p95.log10() - 3.0, top.max(p95).log10())))
-}
-
-/// Rec. 709 luminance of a radiosity.
-fn luminance(b: Vec3) -> f32 {
-    b.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// The EV that shows radiosity luminance `p95` (W/m²) at an exposed radiance of 0.8.

@@ -406,3 +406,72 @@ fn the_viewer_draws_the_hermite_surface_the_cpu_evaluates() {
     // line (the light jumps there) or of a crease, and by a level where rounding does.
     assert!(mean <= 0.2 && p99 <= 2, "mean {mean}, p99 {p99}");
 }
+
+#[test]
+fn vertex_values_keep_to_the_colours_around_them() {
+    // Light whose colour varies from element to element (every channel of every element
+    // between 0.2 and 1, drawn at random on the Cornell box's surfaces): a vertex value
+    // is the luminance's plane at the vertex times a chromaticity (value over luminance)
+    // kept within those of the elements around it, widened by their spread. A channel's
+    // own plane, extrapolated to a surface's edge, could put it at 0 while the others
+    // stay lit: a colour the light around the vertex does not have (under Sponza's
+    // cornice the wall went yellow where blue fell to 0).
+    use radiosity::geometry::sampling::{hash, unit};
+    use radiosity::mesh::luminance;
+    let prepared = Prepared::new(
+        &builtin::cornell_box(),
+        &MeshSettings {
+            max_elements: Some(1500),
+            ..Default::default()
+        },
+    );
+    let mesh = &prepared.mesh;
+    let values: Vec<Vec3> = (0..mesh.elements.len() as u64)
+        .map(|i| {
+            Vec3::new(
+                unit(hash(3 * i)),
+                unit(hash(3 * i + 1)),
+                unit(hash(3 * i + 2)),
+            )
+        })
+        .map(|v| Vec3::splat(0.2) + v * 0.8)
+        .collect();
+    let mut around = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); mesh.display.positions.len()];
+    for (e, v) in mesh.elements.iter().zip(&values) {
+        for &c in &e.corners {
+            let r = &mut around[c as usize];
+            *r = (r.0.min(*v / luminance(*v)), r.1.max(*v / luminance(*v)));
+        }
+    }
+    let hanging: std::collections::HashSet<u32> =
+        mesh.display.hanging.iter().map(|h| h.vertex).collect();
+    let gouraud = mesh.display.vertex_values(&mesh.elements, &values);
+    let hermite = mesh.display.hermite(&mesh.elements, &values).values;
+    let (mut checked, mut worst) = (0, 0.0f32);
+    for (k, (lo, hi)) in around.iter().enumerate() {
+        // T-vertices take their coarse edge's value, not a fit of their own.
+        if hanging.contains(&(k as u32)) || lo.x > hi.x {
+            continue;
+        }
+        for v in [gouraud[k], hermite[k]] {
+            let l = luminance(v);
+            if l <= 0.0 {
+                continue;
+            }
+            let c = v / l;
+            // Outside the widened range, as a share of the range's top.
+            let outside = (*lo - (*hi - *lo) - c)
+                .max(c - (*hi + (*hi - *lo)))
+                .max(Vec3::ZERO);
+            worst = worst.max((outside / *hi).max_element());
+            checked += 1;
+        }
+    }
+    println!("{checked} vertex values; worst chromaticity outside the widened range: {worst:.2e}");
+    assert!(checked > 1000, "{checked} vertex values");
+    // f32 rounding of the value over its luminance.
+    assert!(
+        worst <= 1e-5,
+        "a vertex's colour {worst} beyond those around it"
+    );
+}

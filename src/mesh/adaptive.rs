@@ -14,7 +14,7 @@
 //! [`Mesh::refine`] rewrites the element array (each patch's leaves stay contiguous) and
 //! returns where every old element went, so a solver can carry its per-element state over.
 
-use super::{Element, Mesh};
+use super::{Element, Mesh, luminance};
 use crate::geometry::{subdivide, triangle_cross};
 use glam::Vec3;
 
@@ -51,10 +51,6 @@ pub enum Moved {
     Kept(u32),
     /// Split into these four new elements.
     Split([u32; 4]),
-}
-
-fn luminance(v: Vec3) -> f32 {
-    v.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// Element size as the leg of a right isosceles triangle of the same area.

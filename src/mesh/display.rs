@@ -12,6 +12,14 @@ use crate::geometry::sampling::FastMap;
 use glam::Vec3;
 use std::collections::hash_map::Entry;
 
+/// Rec. 709 luminance: the brightness that vertex values are fitted in (see
+/// `DisplayMesh::fit`), also what adaptive subdivision and auto exposure compare.
+pub fn luminance(v: Vec3) -> f32 {
+    v.dot(LUMINANCE)
+}
+
+const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
+
 /// Normals within this angle are one smooth surface (the usual 30° crease angle of
 /// modelling tools).
 pub const SMOOTH_ANGLE_DEG: f32 = 30.0;
@@ -196,16 +204,32 @@ impl DisplayMesh {
     /// from opposite sides, each with a corner inside the other's edge (an input's
     /// T-junctions): then the passes are a fixed-point iteration that converges, each
     /// vertex's dependence on itself through the other being a product of parameters
-    /// below 1.
+    /// below 1, slowly where that product is near 1 (on Sponza, all 64 passes). Passes
+    /// after the first go only through the T-vertices with a T-vertex at an end of their
+    /// edge: the others are set for good by the first.
     fn resolve_hanging(&self, mut set: impl FnMut(&Hanging) -> (f32, f32)) {
-        for pass in 0..64 {
-            let (mut change, mut size) = (0.0f32, 0.0f32);
-            for h in &self.hanging {
+        let mut is_hanging = vec![false; self.positions.len()];
+        for h in &self.hanging {
+            is_hanging[h.vertex as usize] = true;
+        }
+        let depends = |h: &&Hanging| h.edge.iter().any(|&v| is_hanging[v as usize]);
+        let dependent: Vec<&Hanging> = self.hanging.iter().filter(depends).collect();
+        // The largest size among the T-vertices set for good.
+        let mut settled = 0.0f32;
+        for h in &self.hanging {
+            let (_, s) = set(h);
+            if !depends(&h) {
+                settled = settled.max(s);
+            }
+        }
+        for _ in 1..64 {
+            let (mut change, mut size) = (0.0f32, settled);
+            for h in &dependent {
                 let (c, s) = set(h);
                 change = change.max(c);
                 size = size.max(s);
             }
-            if pass > 0 && change <= 1e-6 * size {
+            if change <= 1e-6 * size {
                 break;
             }
         }
@@ -235,8 +259,8 @@ impl DisplayMesh {
 }
 
 /// What `DisplayMesh::fit` finds per display vertex: the value, the gradient of each RGB
-/// channel in the surface's tangent plane, and the range (least, greatest) of the values
-/// of the elements around it.
+/// channel in the surface's tangent plane (all three along the luminance's), and the range
+/// (least, greatest) of the values of the elements around it.
 struct Fit {
     values: Vec<Vec3>,
     gradients: Vec<[Vec3; 3]>,
@@ -255,9 +279,10 @@ struct Fit {
 /// element's plane) is made linear along the edge, between the end gradients' values, so
 /// both elements sharing an edge have the same cross-edge slope: C¹ across edges where
 /// they share their vertices (a smooth surface), not only at vertices. The inner points
-/// follow from C¹ between the three sub-triangles. Linear light is reproduced exactly.
-/// The vertex gradient is the least-squares plane through the vertex value and the
-/// centroids' values of the elements around it, weighted by area. T-vertices take the
+/// follow from C¹ between the three sub-triangles. Linear light of one colour is
+/// reproduced exactly. The vertex gradient is the luminance's least-squares plane through
+/// the centroids' values of the elements around it, weighted by area, times the vertex's
+/// chromaticity (see `DisplayMesh::fit`). T-vertices take the
 /// coarse edge's cubic (value and slope along the edge at their parameter on it) and its
 /// ends' cross-edge slopes interpolated linearly, so refinement leaves neither a crack nor
 /// a crease. Across a contact line vertices are not shared, and the surface jumps.
@@ -347,29 +372,45 @@ fn along(g: &[Vec3; 3], d: Vec3) -> Vec3 {
 }
 
 impl DisplayMesh {
-    /// Per vertex, the area-weighted least-squares plane through the values at the
-    /// centroids of the elements around it: its value at the vertex (clamped at 0) and its
-    /// gradient per channel. Unlike the plain area-weighted mean, this is exact for linear
-    /// light and extrapolates at a surface's boundary instead of flattening it. Where the
+    /// Per vertex, the area-weighted least-squares plane through the luminance at the
+    /// centroids of the elements around it, and the chromaticity (value over luminance)
+    /// of the channels' planes there. The vertex's value is the luminance plane's value
+    /// (within the luminances around the vertex widened by their spread, and at least 0)
+    /// times that chromaticity, drawn towards the mean's until it is within the
+    /// chromaticities of the elements around it widened by their spread; each channel's
+    /// gradient is the luminance's times the chromaticity. Unlike the plain area-weighted
+    /// mean, this is exact for linear light (the slopes for light of one colour, the
+    /// values also where the colour varies within that range) and extrapolates at a
+    /// surface's boundary instead of flattening it. Fitted channel by
+    /// channel, a small channel's plane could reach 0 at a boundary where the others stay
+    /// lit: under Sponza's cornice blue did, and the wall showed yellow there. Where the
     /// elements around a vertex do not span two directions, the mean and no slope. On a
     /// hard shadow edge, the mean of the elements on the vertex's side and no slope (see
     /// [`ShadowSides`]). The range of the values around each vertex comes with them.
     fn fit(&self, elements: &[Element], values: &[Vec3]) -> Fit {
         let nv = self.positions.len();
         // Fallback values: area-weighted means (where the plane fit is not determined);
-        // and the range of the values around each vertex.
+        // the range of the values around each vertex, of their luminances and of the
+        // chromaticities of those that are lit.
         let mut sum = vec![Vec3::ZERO; nv];
         let mut weight = vec![0.0f32; nv];
         let mut range = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); nv];
+        let mut bright = vec![(f32::INFINITY, f32::NEG_INFINITY); nv];
+        let mut colour = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); nv];
         for (i, (e, v)) in elements.iter().zip(values).enumerate() {
+            let l = luminance(*v);
             for &c in &e.corners {
-                if !self.counts(i, c as usize) {
+                let c = c as usize;
+                if !self.counts(i, c) {
                     continue;
                 }
-                let r = &mut range[c as usize];
-                *r = (r.0.min(*v), r.1.max(*v));
-                sum[c as usize] += *v * e.area;
-                weight[c as usize] += e.area;
+                range[c] = (range[c].0.min(*v), range[c].1.max(*v));
+                bright[c] = (bright[c].0.min(l), bright[c].1.max(l));
+                if l > 0.0 {
+                    colour[c] = (colour[c].0.min(*v / l), colour[c].1.max(*v / l));
+                }
+                sum[c] += *v * e.area;
+                weight[c] += e.area;
             }
         }
         let mut vals: Vec<Vec3> = sum
@@ -377,11 +418,12 @@ impl DisplayMesh {
             .zip(&weight)
             .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
             .collect();
-        // Value and gradient: the area-weighted least-squares plane through the centroids'
+        // The area-weighted least-squares plane of each channel through the centroids'
         // values of the elements around the vertex, f_e ≈ a + g · (c_e − p_v) in the
-        // vertex's tangent plane (a 3×3 normal system per channel), evaluated at the vertex.
-        // Where the elements around it do not span two directions (a lone corner), the
-        // area-weighted mean and no slope.
+        // vertex's tangent plane (a 3×3 normal system), evaluated at the vertex; the
+        // luminance's plane is the same weighted sum of the channels' (least squares is
+        // linear in the data). Where the elements around it do not span two directions (a
+        // lone corner), the area-weighted mean and no slope.
         let mut m = vec![[0.0f64; 6]; nv]; // s00 s01 s02 s11 s12 s22
         let mut r = vec![[[0.0f64; 3]; 3]; nv];
         let basis: Vec<(Vec3, Vec3)> = self.normals.iter().map(|n| orthonormal_basis(*n)).collect();
@@ -412,6 +454,8 @@ impl DisplayMesh {
             }
         }
         let mut grads = vec![[Vec3::ZERO; 3]; nv];
+        // Widened by its spread: room for a ramp's extrapolation to a boundary.
+        let widen = |lo: f32, hi: f32| (lo - (hi - lo), hi + (hi - lo));
         for k in 0..nv {
             if self.on_shadow_edge(k) {
                 // A plane fitted to one side's elements extrapolates to the vertex from
@@ -431,22 +475,49 @@ impl DisplayMesh {
             if det.is_nan() || det <= 1e-9 * scale {
                 continue;
             }
+            // The plane's value at the vertex and its slopes along t1 and t2.
+            let plane = |[r0, r1, r2]: [f64; 3]| {
+                [
+                    (c00 * r0 + c01 * r1 + c02 * r2) / det,
+                    (c01 * r0 + c11 * r1 + c12 * r2) / det,
+                    (c02 * r0 + c12 * r1 + c22 * r2) / det,
+                ]
+            };
+            let channels = r[k].map(plane);
+            let lum = plane(std::array::from_fn(|j| {
+                (0..3).map(|ch| LUMINANCE[ch] as f64 * r[k][ch][j]).sum()
+            }));
+            // An ill-conditioned fit (a sliver beside the vertex) can put the plane's value
+            // far outside the data: keep it within the luminances around the vertex.
+            let (lo, hi) = widen(bright[k].0, bright[k].1);
+            let brightness = (lum[0] as f32).min(hi).max(lo).max(0.0);
+            // The chromaticity: the fitted one, or where it leaves the widened range of
+            // those around the vertex, the point where the way to it from the mean's (which
+            // is within the range: a weighted mean of them) leaves the range.
+            let (clo, chi) = colour[k];
+            let mean = vals[k] / luminance(vals[k]).max(f32::MIN_POSITIVE);
+            let chroma = if brightness == 0.0 || clo.x > chi.x {
+                Vec3::ZERO
+            } else if lum[0] <= 0.0 {
+                mean
+            } else {
+                let fitted = Vec3::from_array(channels.map(|c| (c[0] / lum[0]) as f32));
+                let mut t = 1.0f32;
+                for ch in 0..3 {
+                    let (lo, hi) = widen(clo[ch], chi[ch]);
+                    let d = fitted[ch] - mean[ch];
+                    if fitted[ch] > hi {
+                        t = t.min((hi - mean[ch]) / d);
+                    } else if fitted[ch] < lo.max(0.0) {
+                        t = t.min((lo.max(0.0) - mean[ch]) / d);
+                    }
+                }
+                mean + (fitted - mean) * t.max(0.0)
+            };
             let (t1, t2) = basis[k];
-            let mut a = Vec3::ZERO;
-            for ch in 0..3 {
-                let [r0, r1, r2] = r[k][ch];
-                // An ill-conditioned fit (a sliver beside the vertex) can put the plane's
-                // value far outside the data: keep it within the values around the vertex
-                // widened by their spread (room for a ramp's extrapolation to a boundary).
-                let (lo, hi) = (range[k].0[ch] as f64, range[k].1[ch] as f64);
-                let a_ch =
-                    ((c00 * r0 + c01 * r1 + c02 * r2) / det).clamp(lo - (hi - lo), hi + (hi - lo));
-                let g1 = (c01 * r0 + c11 * r1 + c12 * r2) / det;
-                let g2 = (c02 * r0 + c12 * r1 + c22 * r2) / det;
-                a[ch] = a_ch.max(0.0) as f32;
-                grads[k][ch] = t1 * g1 as f32 + t2 * g2 as f32;
-            }
-            vals[k] = a;
+            let g = t1 * lum[1] as f32 + t2 * lum[2] as f32;
+            vals[k] = chroma * brightness;
+            grads[k] = [g * chroma.x, g * chroma.y, g * chroma.z];
         }
         Fit {
             values: vals,

@@ -38,6 +38,7 @@ pub use adaptive::{AdaptiveSettings, Moved, size as element_size};
 pub use conforming::{Corner, TVertices};
 pub use display::{
     Bezier, DisplayMesh, Hermite, Reconstruction, Reconstructor, ShadowSides, eval_bezier,
+    luminance,
 };
 pub use hanging::Hanging;
 pub use hard_shadows::LightTargets;
