@@ -212,6 +212,11 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
         "no convergence in 180 s"
     );
     assert_eq!(h.state().error(), None);
+    // Hermite shading (the default) once the worker's vertex slopes are on the GPU.
+    assert!(
+        step_until(&mut h, 30.0, |a| a.hermite_shown()),
+        "no Hermite data from the worker in 30 s"
+    );
     h.step();
     let img = h.render().expect("render");
     img.save(screenshots().join("kittest_converged.png"))
@@ -237,27 +242,28 @@ fn the_app_converges_shows_bleeding_toggles_wireframe_picks_and_edits_live() {
     h.step();
     assert!(!h.state().wireframe(), "W did not toggle the wireframe");
 
-    // Hermite shading through its button; the picture changes and still bleeds.
-    h.get_by_label("Hermite").click();
+    // Gouraud shading through its button: the picture changes and still bleeds; then back
+    // to Hermite, the default.
+    h.get_by_label("Gouraud").click();
     h.step();
     h.step();
     assert_eq!(
         h.state().display().reconstruction,
-        radiosity::mesh::Reconstruction::Hermite
+        radiosity::mesh::Reconstruction::Gouraud
     );
-    // The worker sends a snapshot with the vertex slopes once asked.
+    let gouraud = h.render().expect("render");
+    gouraud
+        .save(screenshots().join("kittest_gouraud.png"))
+        .unwrap();
+    assert_ne!(gouraud, img, "Gouraud shading changed nothing on screen");
+    assert_view_bleeding(&gouraud, r, ppp, "kittest gouraud");
+    h.get_by_label("Hermite").click();
+    h.step();
+    // The worker sends a snapshot with the vertex slopes again once asked.
     assert!(
         step_until(&mut h, 30.0, |a| a.hermite_shown()),
         "no Hermite data from the worker in 30 s"
     );
-    h.step();
-    let hermite = h.render().expect("render");
-    hermite
-        .save(screenshots().join("kittest_hermite.png"))
-        .unwrap();
-    assert_ne!(hermite, img, "Hermite shading changed nothing on screen");
-    assert_view_bleeding(&hermite, r, ppp, "kittest hermite");
-    h.get_by_label("Gouraud").click();
     h.step();
 
     // Picking: a click in the middle of the view selects the back wall's object and shows

@@ -27,7 +27,7 @@ enum Reference {
     /// Per-element values on the same mesh (the solver's convergence, not the truth).
     Elements(Vec<Vec3>, String),
     /// Values at points (world position, normal), compared after reconstruction (the
-    /// viewer's Gouraud), with each point's class when known.
+    /// viewer's Hermite), with each point's class when known.
     Points {
         points: Vec<(DVec3, DVec3)>,
         values: Vec<Vec3>,
@@ -419,7 +419,7 @@ pub fn convergence(
         Reference::Points { points, .. } => locate_patches(mesh, points),
         Reference::Elements(..) => Vec::new(),
     };
-    // The same, for a solution on `mesh` (its Gouraud reconstruction at the points, or its
+    // The same, for a solution on `mesh` (its Hermite reconstruction at the points, or its
     // elements against the elements).
     let errors = |mesh: &crate::mesh::Mesh, values: &[Vec3]| match &reference {
         Reference::Elements(r, _) => (element_errors(values, r, &areas), Vec::new()),
@@ -428,7 +428,7 @@ pub fn convergence(
             values,
             points,
             &patches,
-            Reconstruction::Gouraud,
+            Reconstruction::Hermite,
         )),
     };
     let truth = matches!(reference, Reference::Points { .. });

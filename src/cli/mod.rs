@@ -122,7 +122,7 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
         /// gather (the final gather at each point: point-by-point values), or the mesh
-        /// solution as the viewer shows it: flat, gouraud (the viewer's default) or hermite.
+        /// solution as the viewer shows it: flat, gouraud or hermite (the viewer's default).
         #[arg(long, default_value = "gather")]
         reconstruction: options::ProbeValue,
         #[command(flatten)]

@@ -208,8 +208,8 @@ pub struct RenderOptions {
     /// Default: the whole scene from its open side, as the viewer starts.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_camera)]
     pub camera: Option<(f32, f32, f32)>,
-    /// flat, gouraud or hermite.
-    #[arg(long, alias = "reconstruction", default_value = "gouraud")]
+    /// flat, gouraud or hermite (the viewer's default).
+    #[arg(long, alias = "reconstruction", default_value = "hermite")]
     pub mode: Reconstruction,
     /// Exposure in stops (default: auto exposure, as the viewer).
     #[arg(long, allow_hyphen_values = true)]

@@ -53,7 +53,7 @@ pub struct Display {
 impl Default for Display {
     fn default() -> Self {
         Display {
-            reconstruction: Reconstruction::Gouraud,
+            reconstruction: Reconstruction::Hermite,
             ev: 0.0,
             tonemap: ToneMap::default(),
             false_colour: false,
