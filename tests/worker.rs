@@ -452,3 +452,89 @@ fn snapshots_carry_the_hermite_vertex_data_while_asked() {
         Some(Event::Snapshot { hermite: None, .. })
     ));
 }
+
+#[test]
+fn an_edits_first_snapshot_reuses_the_vertex_data_of_the_unchanged_light() {
+    // A reflectance edit on a converged hierarchical solve shows first with each
+    // element's irradiance H as it was (the edited elements change ρ, not H): that
+    // snapshot reuses the last one's vertex data instead of fitting them again (on Sponza
+    // the fit is most of a snapshot's cost), and they are what the fit of its own
+    // irradiance gives, to the 10⁻⁶ the reuse allows.
+    let worker = Worker::spawn(|| {});
+    let hierarchical = SolverSettings {
+        method: Method::Hierarchical,
+        ..Default::default()
+    };
+    worker.send(load(1, "builtin:cornell", hierarchical));
+    worker.send(Command::SetHermite(true));
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let mesh = events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            Event::Refined { mesh, .. } | Event::Loaded { mesh, .. } => Some(Arc::clone(mesh)),
+            _ => None,
+        })
+        .expect("a mesh");
+    let last = |events: &[Event]| {
+        events.iter().rev().find_map(|e| match e {
+            Event::Snapshot {
+                irradiance,
+                vertex,
+                hermite,
+                ..
+            } => Some((irradiance.clone(), vertex.clone(), hermite.clone())),
+            _ => None,
+        })
+    };
+    let (_, vertex, hermite) = last(&events).expect("a snapshot");
+    assert!(hermite.is_some(), "no Hermite data after SetHermite(true)");
+    worker.send(Command::SetMaterial {
+        material: 0,
+        reflectance: glam::Vec3::splat(0.3),
+        emission: glam::Vec3::ZERO,
+    });
+    let events = until(&worker, |e| matches!(e, Event::Snapshot { .. }));
+    let (irradiance, first, first_hermite) = last(&events).expect("a snapshot");
+    assert!(
+        Arc::ptr_eq(&vertex, &first),
+        "the vertex values were fitted again"
+    );
+    assert!(Arc::ptr_eq(
+        hermite.as_ref().unwrap(),
+        first_hermite.as_ref().unwrap()
+    ));
+    let fitted = mesh.display.vertex_values(&mesh.elements, &irradiance);
+    let worst = fitted
+        .iter()
+        .zip(first.iter())
+        .map(|(a, b)| {
+            ((*a - *b).abs() / a.abs().max(b.abs()).max(glam::Vec3::splat(1e-30))).max_element()
+        })
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst <= 1e-5,
+        "reused vertex values {worst} off their own fit"
+    );
+    // The sweeps that follow change the light, and the vertex data are fitted anew.
+    let events = until(&worker, |e| {
+        matches!(e, Event::Converged { .. } | Event::Failed { .. })
+    });
+    let (irradiance, after, _) = last(&events).expect("a snapshot after the sweeps");
+    assert!(!Arc::ptr_eq(&first, &after));
+    // On the mesh the sweeps left (the oracle may have split leaves the edit brightened).
+    let mesh = events
+        .iter()
+        .rev()
+        .find_map(|e| match e {
+            Event::Refined { mesh, .. } => Some(Arc::clone(mesh)),
+            _ => None,
+        })
+        .unwrap_or(mesh);
+    assert_eq!(
+        *after,
+        *mesh.display.vertex_values(&mesh.elements, &irradiance)
+    );
+}
