@@ -66,8 +66,9 @@ pub enum Command {
     /// Whether snapshots include Cohen et al.'s ambient term (progressive only).
     SetAmbient(bool),
     /// Whether snapshots carry the Hermite values and slopes at the display vertices
-    /// (what Hermite display draws; they cost the worker about twice what the Gouraud
-    /// values do, so only while the display asks). Turning it on sends a snapshot.
+    /// (what Hermite display draws; on Sponza they take the worker 111 ms a snapshot
+    /// against the Gouraud values' 78 ms, so only while the display asks). Turning it on
+    /// sends a snapshot.
     SetHermite(bool),
     /// Write the current solution as a baked .glb (the light per vertex under the edited
     /// materials and their textures; `export`).

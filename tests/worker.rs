@@ -402,6 +402,14 @@ fn export_writes_a_valid_glb_and_never_overwrites_the_opened_file() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The newest mesh among `events` (loaded or refined), which later snapshots are for.
+fn newest_mesh(events: &[Event]) -> Option<Arc<radiosity::mesh::Mesh>> {
+    events.iter().rev().find_map(|e| match e {
+        Event::Refined { mesh, .. } | Event::Loaded { mesh, .. } => Some(Arc::clone(mesh)),
+        _ => None,
+    })
+}
+
 #[test]
 fn snapshots_carry_the_hermite_vertex_data_while_asked() {
     // Hermite display asks the worker for its vertex data (`Command::SetHermite`): the
@@ -413,14 +421,7 @@ fn snapshots_carry_the_hermite_vertex_data_while_asked() {
     let events = until(&worker, |e| {
         matches!(e, Event::Converged { .. } | Event::Failed { .. })
     });
-    let mesh = events
-        .iter()
-        .rev()
-        .find_map(|e| match e {
-            Event::Refined { mesh, .. } | Event::Loaded { mesh, .. } => Some(Arc::clone(mesh)),
-            _ => None,
-        })
-        .expect("a mesh");
+    let mesh = newest_mesh(&events).expect("a mesh");
     for e in &events {
         if let Event::Snapshot { hermite, .. } = e {
             assert!(hermite.is_none(), "Hermite data before they were asked for");
@@ -470,14 +471,7 @@ fn an_edits_first_snapshot_reuses_the_vertex_data_of_the_unchanged_light() {
     let events = until(&worker, |e| {
         matches!(e, Event::Converged { .. } | Event::Failed { .. })
     });
-    let mesh = events
-        .iter()
-        .rev()
-        .find_map(|e| match e {
-            Event::Refined { mesh, .. } | Event::Loaded { mesh, .. } => Some(Arc::clone(mesh)),
-            _ => None,
-        })
-        .expect("a mesh");
+    let mesh = newest_mesh(&events).expect("a mesh");
     let last = |events: &[Event]| {
         events.iter().rev().find_map(|e| match e {
             Event::Snapshot {
@@ -525,14 +519,7 @@ fn an_edits_first_snapshot_reuses_the_vertex_data_of_the_unchanged_light() {
     let (irradiance, after, _) = last(&events).expect("a snapshot after the sweeps");
     assert!(!Arc::ptr_eq(&first, &after));
     // On the mesh the sweeps left (the oracle may have split leaves the edit brightened).
-    let mesh = events
-        .iter()
-        .rev()
-        .find_map(|e| match e {
-            Event::Refined { mesh, .. } => Some(Arc::clone(mesh)),
-            _ => None,
-        })
-        .unwrap_or(mesh);
+    let mesh = newest_mesh(&events).unwrap_or(mesh);
     assert_eq!(
         *after,
         *mesh.display.vertex_values(&mesh.elements, &irradiance)
