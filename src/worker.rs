@@ -556,7 +556,7 @@ struct VertexData {
 
 /// Whether two irradiances are the same light: every channel of every element within
 /// 10⁻⁶ of the larger. An edit's first snapshot keeps each element's H (it changes ρ and
-/// E), up to the rounding of (E + ρH − E)/ρ.
+/// E; `Solver::edit_patches`), up to the rounding of H to f32.
 fn same_light(a: &[Vec3], b: &[Vec3]) -> bool {
     a.len() == b.len()
         && a.iter().zip(b).all(|(a, b)| {
@@ -569,7 +569,7 @@ fn snapshot(j: &mut Job, send: &impl Fn(Event)) {
     j.version += 1;
     let radiosity = j.solver.display_radiosity(j.ambient);
     let (rho, e) = (j.solver.reflectance(), j.solver.emission());
-    let irradiance: Arc<[Vec3]> = crate::solver::irradiance(&radiosity, &rho, &e).into();
+    let irradiance: Arc<[Vec3]> = j.solver.display_irradiance(j.ambient).into();
     let mesh = j.solver.mesh();
     let mesh_version = j.solver.mesh_version();
     // The vertex data are most of a snapshot's cost (on Sponza 78 ms, 111 with Hermite):

@@ -336,6 +336,28 @@ impl Solver {
         )
     }
 
+    /// The irradiance behind [`Solver::display_radiosity`], H = (B − E)/ρ per element
+    /// ([`irradiance_at`]), taken in the f64 that B is kept in: from the f32 display
+    /// values an emitter's H (small beside its E) would lose digits, and an edit's first
+    /// solution, which changes ρ and E but not H, would show another irradiance.
+    pub fn display_irradiance(&self, with_ambient: bool) -> Vec<Vec3> {
+        let ambient = if with_ambient {
+            self.ambient()
+        } else {
+            Vec3::ZERO
+        };
+        (0..self.radiosity.len())
+            .into_par_iter()
+            .with_min_len(ELEMENT_CHUNK)
+            .map(|i| {
+                let rho = self.reflectance[i].as_dvec3();
+                let b = self.radiosity[i] + rho * ambient.as_dvec3();
+                let h = ((b - self.emission[i].as_dvec3()) / rho).max(DVec3::ZERO);
+                DVec3::select(rho.cmpgt(DVec3::ZERO), h, DVec3::ZERO).as_vec3()
+            })
+            .collect()
+    }
+
     /// Does one short unit of work (about `step_budget` of wall time, less if it converges)
     /// and reports whether the solve is done. Checks `cancel` between pieces of work.
     pub fn step(&mut self, cancel: &AtomicBool) -> Result<StepOutcome, SolverError> {
