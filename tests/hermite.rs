@@ -294,6 +294,29 @@ fn hermite_stays_within_the_light_around_it_across_a_step() {
     );
 }
 
+/// The Cornell box meshed to at most 1,500 elements, and one colour per element, each
+/// channel drawn uniformly from [0, 1) (a fixed hash, so every run draws the same).
+fn cornell_with_random_colours() -> (Prepared, Vec<Vec3>) {
+    use radiosity::geometry::sampling::{hash, unit};
+    let prepared = Prepared::new(
+        &builtin::cornell_box(),
+        &MeshSettings {
+            max_elements: Some(1500),
+            ..Default::default()
+        },
+    );
+    let colours = (0..prepared.mesh.elements.len() as u64)
+        .map(|i| {
+            Vec3::new(
+                unit(hash(3 * i)),
+                unit(hash(3 * i + 1)),
+                unit(hash(3 * i + 2)),
+            )
+        })
+        .collect();
+    (prepared, colours)
+}
+
 #[test]
 fn the_viewer_draws_the_hermite_surface_the_cpu_evaluates() {
     // The shader builds each element's Clough–Tocher control points from the vertex
@@ -302,29 +325,14 @@ fn the_viewer_draws_the_hermite_surface_the_cpu_evaluates() {
     // value at the surface point its centre's ray meets, through the same exposure and
     // tone map. The irradiance is drawn at random per element, so the slopes are steep
     // and every control point shapes the picture.
-    use radiosity::geometry::sampling::{hash, unit};
     use radiosity::mesh::barycentric;
     use radiosity::view::render::{Display, Solution, ToneMap, headless_device, render_image};
     let scene = builtin::cornell_box();
-    let prepared = Prepared::new(
-        &scene,
-        &MeshSettings {
-            max_elements: Some(1500),
-            ..Default::default()
-        },
-    );
+    let (prepared, colours) = cornell_with_random_colours();
     let solver = prepared.solver(SolverSettings::default()).unwrap();
     let mesh = &prepared.mesh;
     let (reflectance, emission) = (solver.reflectance(), solver.emission());
-    let irradiance: Vec<Vec3> = (0..mesh.elements.len() as u64)
-        .map(|i| {
-            Vec3::new(
-                unit(hash(3 * i)),
-                unit(hash(3 * i + 1)),
-                unit(hash(3 * i + 2)),
-            ) * 2.0
-        })
-        .collect();
+    let irradiance: Vec<Vec3> = colours.iter().map(|c| *c * 2.0).collect();
     let radiosity: Vec<Vec3> = (irradiance
         .iter()
         .zip(reflectance.iter())
@@ -416,25 +424,12 @@ fn vertex_values_keep_to_the_colours_around_them() {
     // own plane, extrapolated to a surface's edge, could put it at 0 while the others
     // stay lit: a colour the light around the vertex does not have (under Sponza's
     // cornice the wall went yellow where blue fell to 0).
-    use radiosity::geometry::sampling::{hash, unit};
     use radiosity::mesh::luminance;
-    let prepared = Prepared::new(
-        &builtin::cornell_box(),
-        &MeshSettings {
-            max_elements: Some(1500),
-            ..Default::default()
-        },
-    );
+    let (prepared, colours) = cornell_with_random_colours();
     let mesh = &prepared.mesh;
-    let values: Vec<Vec3> = (0..mesh.elements.len() as u64)
-        .map(|i| {
-            Vec3::new(
-                unit(hash(3 * i)),
-                unit(hash(3 * i + 1)),
-                unit(hash(3 * i + 2)),
-            )
-        })
-        .map(|v| Vec3::splat(0.2) + v * 0.8)
+    let values: Vec<Vec3> = colours
+        .iter()
+        .map(|v| Vec3::splat(0.2) + *v * 0.8)
         .collect();
     let mut around = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); mesh.display.positions.len()];
     for (e, v) in mesh.elements.iter().zip(&values) {
