@@ -329,18 +329,7 @@ fn an_edited_solve_matches_a_fresh_solve_of_the_edited_scene() {
 
     let mut s = solve(&scene, HierarchySettings::default());
     let rays_before = s.stats().rays;
-    let edits: Vec<PatchEdit> = s
-        .mesh()
-        .patches
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.material == red)
-        .map(|(i, p)| PatchEdit {
-            patch: i as u32,
-            reflectance: new_rho,
-            emission: p.emission,
-        })
-        .collect();
+    let edits = material_edits(&s, red, new_rho);
     assert!(!edits.is_empty());
     let before = patch_means(s.mesh(), &s.radiosity());
     // The edit shows on the wall at once, before any sweep: B = E' + ρ_new H with the H
