@@ -4,7 +4,7 @@
 //! L_e(uv)), so it reconstructs H, which is smooth across triangles of different texture
 //! means, rather than B, which jumps with them.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// H per element and channel from radiosity, reflectance and emitted radiosity (W/m²)
 /// ([`irradiance_at`] of each element).
@@ -17,11 +17,20 @@ pub fn irradiance(radiosity: &[Vec3], reflectance: &[Vec3], emission: &[Vec3]) -
         .collect()
 }
 
-/// H from one radiosity `b`, reflectance `rho` and emitted radiosity `e`. A channel with
-/// ρ = 0 reflects nothing, so its H is unknown and does not matter: 0.
+/// H from one radiosity `b`, reflectance `rho` and emitted radiosity `e`
+/// ([`irradiance_at_f64`]).
 pub fn irradiance_at(b: Vec3, rho: Vec3, e: Vec3) -> Vec3 {
-    let h = (b - e) / rho;
-    Vec3::select(rho.cmpgt(Vec3::ZERO), h.max(Vec3::ZERO), Vec3::ZERO)
+    irradiance_at_f64(b.as_dvec3(), rho, e)
+}
+
+/// H from a radiosity `b` kept in f64 (as the solvers keep it), reflectance `rho` and
+/// emitted radiosity `e`, rounded to f32 once at the end: an emitter's H is small beside
+/// its E, and B rounded to f32 first would lose its digits. A channel with ρ = 0 reflects
+/// nothing, so its H is unknown and does not matter: 0.
+pub fn irradiance_at_f64(b: DVec3, rho: Vec3, e: Vec3) -> Vec3 {
+    let rho = rho.as_dvec3();
+    let h = (b - e.as_dvec3()) / rho;
+    DVec3::select(rho.cmpgt(DVec3::ZERO), h.max(DVec3::ZERO), DVec3::ZERO).as_vec3()
 }
 
 #[cfg(test)]

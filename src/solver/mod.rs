@@ -41,7 +41,7 @@ pub mod stochastic;
 mod types;
 
 pub use hierarchical::{ElementLinks, LinkView};
-pub use irradiance::{irradiance, irradiance_at};
+pub use irradiance::{irradiance, irradiance_at, irradiance_at_f64};
 pub use types::{
     HierarchySettings, MAX_DIRECT_PATCHES, MAX_MATRIX_PAIRS, Method, PatchEdit, SolverError,
     SolverSettings, Stats, StepOutcome,
@@ -336,10 +336,10 @@ impl Solver {
         )
     }
 
-    /// The irradiance behind [`Solver::display_radiosity`], H = (B − E)/ρ per element
-    /// ([`irradiance_at`]), taken in the f64 that B is kept in: from the f32 display
-    /// values an emitter's H (small beside its E) would lose digits, and an edit's first
-    /// solution, which changes ρ and E but not H, would show another irradiance.
+    /// The irradiance behind [`Solver::display_radiosity`], H = (B − E)/ρ per element,
+    /// taken from B in f64 ([`irradiance_at_f64`]): from the f32 display values an
+    /// emitter's H would lose digits, and an edit's first solution, which changes ρ and E
+    /// but not H, would show another irradiance.
     pub fn display_irradiance(&self, with_ambient: bool) -> Vec<Vec3> {
         let ambient = if with_ambient {
             self.ambient()
@@ -350,10 +350,9 @@ impl Solver {
             .into_par_iter()
             .with_min_len(ELEMENT_CHUNK)
             .map(|i| {
-                let rho = self.reflectance[i].as_dvec3();
-                let b = self.radiosity[i] + rho * ambient.as_dvec3();
-                let h = ((b - self.emission[i].as_dvec3()) / rho).max(DVec3::ZERO);
-                DVec3::select(rho.cmpgt(DVec3::ZERO), h, DVec3::ZERO).as_vec3()
+                let rho = self.reflectance[i];
+                let b = self.radiosity[i] + rho.as_dvec3() * ambient.as_dvec3();
+                irradiance_at_f64(b, rho, self.emission[i])
             })
             .collect()
     }
