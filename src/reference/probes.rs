@@ -55,7 +55,8 @@ impl Class {
 }
 
 /// The class of a probe of class `drawn` once the reference has estimated it: [`Class::Dark`]
-/// where every sample was black away from the shadows of area lights (`samples` > 0).
+/// where every sample was black away from the shadows of area lights (`samples` > 0; the
+/// reference samples a black point until a hit would have shown, see `reference`).
 pub fn with_reference(drawn: Class, value: DVec3, samples: u64) -> Class {
     let shadow = matches!(drawn, Class::Penumbra | Class::Umbra);
     if !shadow && samples > 0 && value == DVec3::ZERO {
@@ -94,7 +95,7 @@ impl Default for ProbeCounts {
 }
 
 /// How the probes are drawn, for keys of cached references: a change here must change it.
-pub const SCHEME: &str = "uniform by area; edges by length, half contacts, covered and hidden points left out; shadows of area lights by area; black in the reference: dark";
+pub const SCHEME: &str = "uniform by area; edges by length, half contacts, covered and hidden points left out; shadows of area lights by area; black in the reference, the rule of three met: dark";
 
 /// Shadow rays per probe for its shadow class, to points spread over the emitters.
 const SHADOW_RAYS: u32 = 64;
