@@ -369,22 +369,27 @@ fn probes_leave_hidden_points_out() {
     assert_eq!(hidden[0].value, DVec3::ZERO);
 }
 
-/// A sphere of radius 1 about the origin cut into `rings` bands of 2 `rings` facets each,
-/// facing inwards, with the band around the north pole left out: a port. Returns the
-/// sphere and the port's share f of the whole sphere's facet area.
+/// Corner (i, j) of a unit sphere cut into `rings` bands of 2 `rings` facets: polar angle
+/// π i / `rings` from the north pole (+y), azimuth 2π j / (2 `rings`).
+fn sphere_corner(rings: u32, i: u32, j: u32) -> DVec3 {
+    let segments = 2 * rings;
+    let (theta, phi) = (
+        PI * i as f64 / rings as f64,
+        2.0 * PI * (j % segments) as f64 / segments as f64,
+    );
+    DVec3::new(
+        theta.sin() * phi.cos(),
+        theta.cos(),
+        theta.sin() * phi.sin(),
+    )
+}
+
+/// A sphere of radius 1 about the origin cut into `rings` bands of 2 `rings` facets each
+/// ([`sphere_corner`]), facing inwards, with the band around the north pole left out: a
+/// port. Returns the sphere and the port's share f of the whole sphere's facet area.
 fn ported_sphere(rings: u32) -> (Object, f64) {
     let segments = 2 * rings;
-    let at = |i: u32, j: u32| {
-        let (theta, phi) = (
-            PI * i as f64 / rings as f64,
-            2.0 * PI * (j % segments) as f64 / segments as f64,
-        );
-        DVec3::new(
-            theta.sin() * phi.cos(),
-            theta.cos(),
-            theta.sin() * phi.sin(),
-        )
-    };
+    let at = |i, j| sphere_corner(rings, i, j);
     let mut o = Object {
         name: "sphere".into(),
         ..Default::default()
@@ -431,7 +436,8 @@ fn ported_sphere(rings: u32) -> (Object, f64) {
 /// no hit in their first 768 samples and came back black with a standard error of zero.
 #[test]
 fn a_point_lit_by_rare_paths_is_not_called_black() {
-    let (sphere, f) = ported_sphere(70);
+    let rings = 70;
+    let (sphere, f) = ported_sphere(rings);
     let rho = 0.1;
     let scene = Scene {
         name: "ported sphere".into(),
@@ -445,14 +451,7 @@ fn a_point_lit_by_rare_paths_is_not_called_black() {
     };
     let truth = rho * PI * f / (1.0 - rho * (1.0 - f));
     // The centroids of facets down the sphere, facing the centre.
-    let at = |i: u32, j: u32| {
-        let (theta, phi) = (PI * i as f64 / 70.0, 2.0 * PI * j as f64 / 140.0);
-        DVec3::new(
-            theta.sin() * phi.cos(),
-            theta.cos(),
-            theta.sin() * phi.sin(),
-        )
-    };
+    let at = |i, j| sphere_corner(rings, i, j);
     let points: Vec<(DVec3, DVec3)> = [5u32, 12, 20, 28, 35, 42, 50, 58]
         .iter()
         .enumerate()
