@@ -437,7 +437,7 @@ impl StrataRays {
         seed: u64,
     ) -> StrataRays {
         let k = k.clamp(1, 16);
-        StrataRays::cast_each(bvh, x + n * eps, skip, k, |s| {
+        StrataRays::cast_each(bvh, (x + n * eps, n), skip, k, |s| {
             stratified_point(source, k, s, seed) + sn * eps
         })
     }
@@ -455,23 +455,24 @@ impl StrataRays {
         seed: u64,
     ) -> StrataRays {
         let k = k.clamp(1, 8);
-        StrataRays::cast_each(bvh, x + n * eps, skip, k, |s| {
+        StrataRays::cast_each(bvh, (x + n * eps, n), skip, k, |s| {
             let fine = sub_strata(k, s)[nested_choice(seed, s)];
             stratified_point(source, 2 * k, fine, seed) + sn * eps
         })
     }
 
-    /// One ray from `from` to `point(s)` for each stratum s of the k² cut.
+    /// One ray from `from` (on the side of its surface that normal `n` points to) to
+    /// `point(s)` for each stratum s of the k² cut ([`ray_in_front`]).
     fn cast_each(
         bvh: &Bvh,
-        from: Vec3,
+        (from, n): (Vec3, Vec3),
         skip: [u32; 2],
         k: u32,
         point: impl Fn(u32) -> Vec3,
     ) -> StrataRays {
         let mut rays = StrataRays::empty(k);
         for s in 0..k * k {
-            rays.record(s, bvh.transmittance(from, point(s), skip));
+            rays.record(s, ray_in_front(bvh, (from, n), point(s), skip));
         }
         rays
     }
@@ -500,7 +501,7 @@ impl StrataRays {
                     self.through[s as usize]
                 } else {
                     let y = stratified_point(source, 2 * k, fine, seed) + sn * eps;
-                    bvh.transmittance(from, y, skip)
+                    ray_in_front(bvh, (from, n), y, skip)
                 };
                 rays.record(fine, t);
             }
@@ -561,6 +562,32 @@ impl StrataRays {
             // Every stratum below the horizon: nothing to weight by but the rays' mean.
             self.through[..strata].iter().sum::<f32>() / strata as f32
         }
+    }
+}
+
+/// The transmittance of the segment from `from`, lifted off its surface along the
+/// surface's normal `n`, to `y`: zero where `y` does not lie in front of that surface.
+///
+/// The segment's test skips the receiver's own triangle (it starts on it), so a point
+/// behind the receiver's plane would be reached through the receiver itself. Such a point
+/// has no weight in the form factor, but a stratum that straddles the receiver's plane
+/// does, and its one ray may land in the part behind: on the inside of a double-sided
+/// box standing in a floor, a stratum of the floor outside the box's corner, half in
+/// front of the wall's inner side and hidden there by the next wall, sent its ray around
+/// that wall's edge and through the inner side's own triangle, and the box's inside took
+/// 1.3·10⁻⁴ of the floor's light at ρ = 0.5. At ρ = 0.999, whose cavity keeps what
+/// leaks in for a thousand bounces, the inside came to 5.6 % of the floor outside
+/// (`cornell-box-nvpro`'s tall box: as bright as the floor outside it).
+pub(in crate::solver) fn ray_in_front(
+    bvh: &Bvh,
+    (from, n): (Vec3, Vec3),
+    y: Vec3,
+    skip: [u32; 2],
+) -> f32 {
+    if n.dot(y - from) > 0.0 {
+        bvh.transmittance(from, y, skip)
+    } else {
+        0.0
     }
 }
 

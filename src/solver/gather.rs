@@ -56,7 +56,7 @@
 //! independent, so a set of points is gathered in parallel with results that do not depend
 //! on the thread count.
 
-use super::form_factor::{point_to_triangle_within, strata_visibility};
+use super::form_factor::{point_to_triangle_within, ray_in_front, strata_visibility};
 use super::hierarchical::clusters::Clusters;
 use super::hierarchical::transfer::projected_area;
 use crate::accel::{Bvh, Shaft};
@@ -580,8 +580,12 @@ impl Gatherer {
     ) -> Visit {
         let x = at.x;
         let delta = at.delta;
-        if normal.dot(x - verts[0]) <= 0.0 {
-            return Visit::Skip; // x is behind the node
+        // x is behind the node, or on the node's own triangle: its front is coplanar with
+        // x and its back (a double-sided surface's other side) faces away, though a
+        // rounding error of x off the plane made the back a disc right above x (F ≈ 1:
+        // the outside of a white sphere took the light of its sealed inside).
+        if normal.dot(x - verts[0]) <= 0.0 || triangle == at.own {
+            return Visit::Skip;
         }
         // The form factor to within a quarter of δ of the light it carries.
         let bright = value.hi.max(value.mean).element_sum();
@@ -703,7 +707,7 @@ impl Gatherer {
                 let patch = &self.mesh.patches[p as usize];
                 let y = stratified_point(&patch.verts, 1, 0, hash(seed ^ k as u64))
                     + patch.normal * eps;
-                self.bvh.transmittance(from, y, [own, patch.scene_triangle])
+                ray_in_front(&self.bvh, (from, n), y, [own, patch.scene_triangle])
             })
             .sum();
         let used = if count == 0 {

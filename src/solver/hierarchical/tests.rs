@@ -646,7 +646,10 @@ fn coarse_to_fine_rounds_end_where_full_threshold_rounds_end() {
         coarse.step(crate::cancel::never()).unwrap();
         // The hierarchy is made by the first step that reaches the hierarchical work; a
         // short step may end before (the direct light comes first).
-        let coarseness = coarse.hierarchy.as_ref().map_or(COARSE_START, |h| h.coarseness);
+        let coarseness = coarse
+            .hierarchy
+            .as_ref()
+            .map_or(COARSE_START, |h| h.coarseness);
         if first_round.is_none() && coarseness < COARSE_START {
             first_round = Some(at_points(&coarse));
         }

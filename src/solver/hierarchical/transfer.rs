@@ -224,6 +224,19 @@ fn surface_to_surface(
     (final_receiver, final_source): (bool, bool),
     seed: u64,
 ) -> Transfer {
+    if rt == st {
+        // The two sides of one double-sided triangle: the point-to-polygon factor between
+        // them is 0 · ∞ wherever rounding puts a receiver point off the plane, and the
+        // shadow rays skip that very triangle. Nothing passes from one side to the other.
+        return Transfer {
+            values: [0.0; 3],
+            spread: 0.0,
+            partial: false,
+            rays: 0,
+            toward: CENTROID,
+            miss: [0.0; 3],
+        };
+    }
     let fine = final_receiver && final_source;
     let q = quadrature(rv);
     let f = q.map(|x| front_form_factor(x, rn, sv, sn));
@@ -625,6 +638,8 @@ fn near_transfer(bvh: &Bvh, eps: f32, r: &Shape, s: &Shape, seed: u64) -> Transf
             }
             let y = stratified_point(&p.verts, 1, 0, hash(seed ^ j as u64)) + p.normal * eps;
             rays += 1;
+            // A point behind the receiver's plane is not blocked here (its single ray stands
+            // for the whole of a patch the plane may cut: blocking it halved the transfer).
             f += w * k * bvh.transmittance(x + n * eps, y, [own, p.triangle]);
         }
         f
