@@ -447,9 +447,7 @@ impl Gatherer {
 
     /// Σ_s F(x → s) V(x, s) B_s over the hierarchy, each node to within δ.
     fn gathered(&self, at: At, seed: u64) -> Vec3 {
-        let At {
-            x, n, from, own, ..
-        } = at;
+        let At { x, n, own, .. } = at;
         let mesh = &self.mesh;
         let virtual_levels = self
             .settings
@@ -473,7 +471,7 @@ impl Gatherer {
                     let gap = dist - cluster.radius;
                     let (mean, hi) = self.cluster_values[c as usize];
                     if gap > 0.0 && cluster.area * hi / (PI * gap * gap) <= at.delta {
-                        h += mean * self.cluster_factor(c as usize, x, n, from, own, seed);
+                        h += mean * self.cluster_factor(c as usize, x, n, own, seed);
                     } else {
                         for k in self.clusters.children_of(c as usize) {
                             stack.push(match k.cluster() {
@@ -676,7 +674,7 @@ impl Gatherer {
 
     /// The factor through which cluster `c` sends its mean radiosity to x: its projected
     /// area towards x over π d², times n · ω and the visibility of its sample patches.
-    fn cluster_factor(&self, c: usize, x: Vec3, n: Vec3, from: Vec3, own: u32, seed: u64) -> f32 {
+    fn cluster_factor(&self, c: usize, x: Vec3, n: Vec3, own: u32, seed: u64) -> f32 {
         let cluster = &self.clusters.nodes[c];
         let d = cluster.centre - x;
         let dist2 = d.length_squared();
@@ -707,7 +705,7 @@ impl Gatherer {
                 let patch = &self.mesh.patches[p as usize];
                 let y = stratified_point(&patch.verts, 1, 0, hash(seed ^ k as u64))
                     + patch.normal * eps;
-                ray_in_front(&self.bvh, (from, n), y, [own, patch.scene_triangle])
+                ray_in_front(&self.bvh, (x, n), (eps, [own, patch.scene_triangle]), y)
             })
             .sum();
         let used = if count == 0 {
