@@ -476,12 +476,13 @@ impl Mesh {
     /// element quadtree, `depth` levels deep.
     fn push_patch(&mut self, s: &Source, verts: [Vec3; 3], back: bool, depth: u32) {
         let n = triangle_cross(&verts);
+        let normal = self.piece_normal(s.scene_triangle, n, back);
         let first = self.elements.len() as u32;
         let patch = self.patches.len() as u32;
-        let root = self.push_node(verts, depth, patch, 0);
+        let root = self.push_node(verts, depth, patch, 0, normal);
         self.patches.push(Patch {
             verts,
-            normal: n.normalize_or_zero(),
+            normal,
             area: 0.5 * n.length(),
             scene_triangle: s.scene_triangle,
             triangle: s.triangle,
@@ -498,9 +499,34 @@ impl Mesh {
         });
     }
 
+    /// The normal of a patch whose vertices' cross product is `n`, cut from scene triangle
+    /// `t` (its `back` side when `back`): the scene triangle's own. A piece cut off along
+    /// a contact line can be a sliver of 10⁻¹⁰ m² whose three corners are nearly in line,
+    /// and the cross product of those corners points anywhere: on `cornell-box-nvpro`,
+    /// slivers of a white sphere's inside where it meets the floor had normals lying
+    /// flat, so their rays started outside the sphere and let the light of the floor
+    /// into it (its inside, sealed, came to half the outside's light at ρ = 0.999).
+    /// A degenerate scene triangle falls back to `n`.
+    fn piece_normal(&self, t: u32, n: Vec3, back: bool) -> Vec3 {
+        let whole = triangle_cross(&self.triangles[t as usize]).normalize_or_zero();
+        match (whole == Vec3::ZERO, back) {
+            (true, _) => n.normalize_or_zero(),
+            (false, false) => whole,
+            (false, true) => -whole,
+        }
+    }
+
     /// Appends the quadtree node `verts` of `patch` at `level`, and below it `depth`
-    /// levels of midpoint subdivision with an element at each leaf; returns its index.
-    fn push_node(&mut self, verts: [Vec3; 3], depth: u32, patch: u32, level: u8) -> u32 {
+    /// levels of midpoint subdivision with an element at each leaf, each with the patch's
+    /// `normal`; returns its index.
+    fn push_node(
+        &mut self,
+        verts: [Vec3; 3],
+        depth: u32,
+        patch: u32,
+        level: u8,
+        normal: Vec3,
+    ) -> u32 {
         let index = self.nodes.len() as u32;
         self.nodes.push(QuadNode {
             verts,
@@ -512,14 +538,15 @@ impl Mesh {
             self.nodes[index as usize].element = Some(self.elements.len() as u32);
             self.elements.push(Element {
                 verts,
-                normal: n.normalize_or_zero(),
+                normal,
                 area: 0.5 * n.length(),
                 patch,
                 level,
                 corners: [0; 3],
             });
         } else {
-            let kids = subdivide(&verts).map(|c| self.push_node(c, depth - 1, patch, level + 1));
+            let kids =
+                subdivide(&verts).map(|c| self.push_node(c, depth - 1, patch, level + 1, normal));
             self.nodes[index as usize].children = Some(kids);
         }
         index

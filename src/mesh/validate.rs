@@ -3,6 +3,7 @@
 //! quadtree nodes, the display mesh and the scene triangles together, and finite geometry.
 
 use super::Mesh;
+use crate::geometry::triangle_cross;
 use glam::Vec3;
 use std::ops::Range;
 
@@ -146,6 +147,17 @@ impl Mesh {
                     p.area
                 ));
             }
+            // A patch is a piece of its scene triangle, in its plane: it faces the way the
+            // triangle does (its back side the other way), however thin the piece.
+            let whole =
+                triangle_cross(&self.triangles[p.scene_triangle as usize]).normalize_or_zero();
+            let side = if p.back { -whole } else { whole };
+            if whole != Vec3::ZERO && p.normal.dot(side) < 1.0 - 1e-5 {
+                return Err(format!(
+                    "patch {i}: normal {} where its scene triangle {} faces {side}",
+                    p.normal, p.scene_triangle
+                ));
+            }
         }
         if next as usize != ne {
             return Err(format!("patches hold elements up to {next} of {ne}"));
@@ -171,6 +183,12 @@ impl Mesh {
                     return Err(format!(
                         "element {k}: vertices, normal or area {} not finite",
                         e.area
+                    ));
+                }
+                if e.normal != p.normal {
+                    return Err(format!(
+                        "element {k}: normal {} in patch {i} of normal {}",
+                        e.normal, p.normal
                     ));
                 }
             }
