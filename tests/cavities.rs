@@ -14,7 +14,6 @@ use glam::{DVec3, Vec3};
 use radiosity::cli::SolveOptions;
 use radiosity::pipeline::Prepared;
 use radiosity::scene::{Light, Material, Object, Scene};
-use std::f64::consts::PI;
 
 /// The six faces of the box [lo, hi], counter-clockwise seen from outside.
 fn cuboid(o: &mut Object, [x0, y0, z0]: [f32; 3], [x1, y1, z1]: [f32; 3], material: u32) {
@@ -109,46 +108,25 @@ fn the_inside_of_a_white_box_standing_in_a_floor_stays_dark() {
 /// finds 0.095. Now a node on the point's own triangle is skipped.
 #[test]
 fn the_outside_of_a_lit_closed_sphere_stays_dark() {
-    let (rings, segments) = (16u32, 32u32);
-    let at = |i: u32, j: u32| {
-        let (theta, phi) = (
-            PI * i as f64 / rings as f64,
-            2.0 * PI * (j % segments) as f64 / segments as f64,
-        );
-        DVec3::new(
-            theta.sin() * phi.cos(),
-            theta.cos(),
-            theta.sin() * phi.sin(),
-        ) * 0.7
-            + DVec3::new(3.1, -1.7, 0.45)
-    };
+    let rings = 16u32;
+    let centre = DVec3::new(3.1, -1.7, 0.45);
     let mut sphere = Object {
         name: "sphere".into(),
         ..Default::default()
     };
     let mut points = Vec::new();
-    for i in 0..rings {
-        for j in 0..segments {
-            let q = [at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)];
-            let tris: &[[usize; 3]] = match i {
-                0 => &[[0, 2, 3]],
-                _ if i == rings - 1 => &[[0, 1, 2]],
-                _ => &[[0, 1, 2], [0, 2, 3]],
-            };
-            for t in tris {
-                let [a, b, c] = t.map(|k| q[k]);
-                let normal = (b - a).cross(c - a);
-                let mid = (a + b + c) / 3.0;
-                let outward = normal.dot(mid - DVec3::new(3.1, -1.7, 0.45)) > 0.0;
-                let corners = if outward { [a, b, c] } else { [a, c, b] };
-                let base = sphere.positions.len() as u32;
-                sphere.positions.extend(corners.map(|p| p.as_vec3()));
-                sphere.triangles.push([base, base + 1, base + 2]);
-                sphere.triangle_material.push(0);
-                if (i * segments + j) % 3 == 0 {
-                    points.push((mid, (mid - DVec3::new(3.1, -1.7, 0.45)).normalize()));
-                }
-            }
+    for (i, j, corners) in common::sphere_facets(rings) {
+        let [a, b, c] = corners.map(|p| p * 0.7 + centre);
+        let normal = (b - a).cross(c - a);
+        let mid = (a + b + c) / 3.0;
+        let outward = normal.dot(mid - centre) > 0.0;
+        let corners = if outward { [a, b, c] } else { [a, c, b] };
+        let base = sphere.positions.len() as u32;
+        sphere.positions.extend(corners.map(|p| p.as_vec3()));
+        sphere.triangles.push([base, base + 1, base + 2]);
+        sphere.triangle_material.push(0);
+        if (i * 2 * rings + j).is_multiple_of(3) {
+            points.push((mid, (mid - centre).normalize()));
         }
     }
     let scene = Scene {

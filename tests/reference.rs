@@ -369,58 +369,29 @@ fn probes_leave_hidden_points_out() {
     assert_eq!(hidden[0].value, DVec3::ZERO);
 }
 
-/// Corner (i, j) of a unit sphere cut into `rings` bands of 2 `rings` facets: polar angle
-/// π i / `rings` from the north pole (+y), azimuth 2π j / (2 `rings`).
-fn sphere_corner(rings: u32, i: u32, j: u32) -> DVec3 {
-    let segments = 2 * rings;
-    let (theta, phi) = (
-        PI * i as f64 / rings as f64,
-        2.0 * PI * (j % segments) as f64 / segments as f64,
-    );
-    DVec3::new(
-        theta.sin() * phi.cos(),
-        theta.cos(),
-        theta.sin() * phi.sin(),
-    )
-}
-
 /// A sphere of radius 1 about the origin cut into `rings` bands of 2 `rings` facets each
-/// ([`sphere_corner`]), facing inwards, with the band around the north pole left out: a
+/// (`common::sphere_facets`), facing inwards, with the band around the north pole left out: a
 /// port. Returns the sphere and the port's share f of the whole sphere's facet area.
 fn ported_sphere(rings: u32) -> (Object, f64) {
-    let segments = 2 * rings;
-    let at = |i, j| sphere_corner(rings, i, j);
     let mut o = Object {
         name: "sphere".into(),
         ..Default::default()
     };
     let (mut port, mut all) = (0.0, 0.0);
-    for i in 0..rings {
-        for j in 0..segments {
-            let quad = [at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)];
-            // The bands at the poles are fans: one corner of each quad is the pole twice.
-            let triangles: &[[usize; 3]] = match i {
-                0 => &[[0, 2, 3]],
-                _ if i == rings - 1 => &[[0, 1, 2]],
-                _ => &[[0, 1, 2], [0, 2, 3]],
-            };
-            for t in triangles {
-                let [a, b, c] = t.map(|k| quad[k]);
-                let area = 0.5 * (b - a).cross(c - a).length();
-                all += area;
-                if i == 0 {
-                    port += area;
-                    continue;
-                }
-                // Counter-clockwise seen from inside: the normal points at the centre.
-                let inward = (b - a).cross(c - a).dot(a + b + c) < 0.0;
-                let base = o.positions.len() as u32;
-                let corners = if inward { [a, b, c] } else { [a, c, b] };
-                o.positions.extend(corners.map(|p| p.as_vec3()));
-                o.triangles.push([base, base + 1, base + 2]);
-                o.triangle_material.push(0);
-            }
+    for (i, _, [a, b, c]) in common::sphere_facets(rings) {
+        let area = 0.5 * (b - a).cross(c - a).length();
+        all += area;
+        if i == 0 {
+            port += area;
+            continue;
         }
+        // Counter-clockwise seen from inside: the normal points at the centre.
+        let inward = (b - a).cross(c - a).dot(a + b + c) < 0.0;
+        let base = o.positions.len() as u32;
+        let corners = if inward { [a, b, c] } else { [a, c, b] };
+        o.positions.extend(corners.map(|p| p.as_vec3()));
+        o.triangles.push([base, base + 1, base + 2]);
+        o.triangle_material.push(0);
     }
     (o, port / all)
 }
@@ -451,7 +422,7 @@ fn a_point_lit_by_rare_paths_is_not_called_black() {
     };
     let truth = rho * PI * f / (1.0 - rho * (1.0 - f));
     // The centroids of facets down the sphere, facing the centre.
-    let at = |i, j| sphere_corner(rings, i, j);
+    let at = |i, j| common::sphere_corner(rings, i, j);
     let points: Vec<(DVec3, DVec3)> = [5u32, 12, 20, 28, 35, 42, 50, 58]
         .iter()
         .enumerate()

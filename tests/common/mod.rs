@@ -17,6 +17,45 @@ use radiosity::solver::{HierarchySettings, Method, Solver, SolverSettings, StepO
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
+/// Corner (i, j) of a unit sphere cut into `rings` bands of 2 `rings` facets: polar angle
+/// π i / `rings` from the north pole (+y), azimuth 2π j / (2 `rings`).
+#[allow(dead_code)]
+pub fn sphere_corner(rings: u32, i: u32, j: u32) -> DVec3 {
+    let segments = 2 * rings;
+    let (theta, phi) = (
+        std::f64::consts::PI * i as f64 / rings as f64,
+        2.0 * std::f64::consts::PI * (j % segments) as f64 / segments as f64,
+    );
+    DVec3::new(
+        theta.sin() * phi.cos(),
+        theta.cos(),
+        theta.sin() * phi.sin(),
+    )
+}
+
+/// The facets of that sphere, band by band: (band i, quad j of the band, its corners), two
+/// per quad, one in the bands at the poles, which are fans (one corner of each quad is the
+/// pole twice). The winding is whichever the quad gives; callers orient them.
+#[allow(dead_code)]
+pub fn sphere_facets(rings: u32) -> Vec<(u32, u32, [DVec3; 3])> {
+    let at = |i, j| sphere_corner(rings, i, j);
+    let mut facets = Vec::new();
+    for i in 0..rings {
+        for j in 0..2 * rings {
+            let quad = [at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j)];
+            let triangles: &[[usize; 3]] = match i {
+                0 => &[[0, 2, 3]],
+                _ if i == rings - 1 => &[[0, 1, 2]],
+                _ => &[[0, 1, 2], [0, 2, 3]],
+            };
+            for t in triangles {
+                facets.push((i, j, t.map(|k| quad[k])));
+            }
+        }
+    }
+    facets
+}
+
 /// Appends the quad `v` (two triangles, the winding of `v`) with `material` to `o`.
 #[allow(dead_code)]
 pub fn quad(o: &mut Object, v: [[f32; 3]; 4], material: u32) {
