@@ -6,7 +6,8 @@
 //! at it inside too.
 
 use super::sizing::{
-    PATCH_PER_ELEMENT, choose_element_size, default_budget, depth_for, sides, split_patches,
+    PATCH_PER_ELEMENT, choose_element_size, default_budget, depth_for, sides, source_sides,
+    split_patches,
 };
 use super::{DisplayMesh, Element, Mesh, MeshSettings, Patch, QuadNode, contact, shadow};
 use super::{scene_triangle, split as cdt, surface_values};
@@ -349,8 +350,8 @@ fn split(
 /// element more in the budget. The contact circle of a tessellated sphere sunk into a
 /// floor is ~100 chords of 1.5 cm, and taken from the budget its pieces coarsened all of
 /// `cornell-box-nvpro`'s elements by 14 % (and, with single-sided outlines chained too,
-/// Sponza's by 48 %). `None` when
-/// the split is not kept: the triangles stay whole, with the size chosen for them.
+/// Sponza's by 48 %). `None` when the split is not kept: the triangles stay whole, with
+/// the size chosen for them.
 fn element_size(
     sources: &[Source],
     split: &Split,
@@ -370,7 +371,7 @@ fn element_size(
             of.iter()
                 .filter(|s| outlined[s.scene_triangle as usize])
                 .filter(|s| (area(&s.verts) as f64) < one)
-                .map(|s| if s.double_sided { 2 } else { 1 })
+                .map(source_sides)
                 .sum()
         };
         let added = small(pieces).saturating_sub(small(sources));

@@ -109,10 +109,12 @@ fn count_elements(sources: &[Source], size: f64) -> usize {
 /// Patch sides of `sources`: one per single-sided source, two per double-sided one (the
 /// fewest elements they can have).
 pub(super) fn sides(sources: &[Source]) -> usize {
-    sources
-        .iter()
-        .map(|s| if s.double_sided { 2 } else { 1 })
-        .sum()
+    sources.iter().map(source_sides).sum()
+}
+
+/// Sides of one source: two for a double-sided material, else one.
+pub(super) fn source_sides(s: &Source) -> usize {
+    if s.double_sided { 2 } else { 1 }
 }
 
 /// The element budget when none is given: [`DEFAULT_ELEMENTS`], or half as many elements
