@@ -158,6 +158,11 @@ pub struct Stats {
     /// Relative residual Σ A_i |r_i| / Σ A_i |E'_i| (progressive: the unshot radiosity,
     /// Southwell's residual of the shooting formulation).
     pub residual: Option<f64>,
+    /// Hierarchical: the largest residual of any element in the last sweep, |E' + ρ H(B)
+    /// − B| over max(B, a twentieth of the area-weighted mean B), channels summed (the
+    /// residual above is the scene's, weighted by area).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worst_element_residual: Option<f64>,
     /// Light arriving at surfaces / light leaving them (1 in a closed scene; less when light
     /// escapes, as through the Cornell box's open front).
     pub energy_balance: Option<f64>,

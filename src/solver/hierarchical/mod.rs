@@ -45,7 +45,7 @@ mod table;
 mod tests;
 pub(super) mod transfer;
 
-use super::anderson::Anderson;
+use super::anderson::{self, Anderson};
 use super::types::Stop;
 use super::{ELEMENT_CHUNK, Solver, ordered_sum, sum3d};
 use crate::accel::Bvh;
@@ -263,6 +263,26 @@ fn mix(corners: &[Vec3; 3], w: [f32; 3]) -> Vec3 {
 fn linear_at(mesh: &Mesh, node: u32, corners: &[Vec3; 3], x: Vec3) -> Vec3 {
     let (_, w) = closest_point_on_triangle(x, &mesh.nodes[node as usize].verts);
     mix(corners, w)
+}
+
+/// The largest residual G(B)_e − B_e of any element in its own equation, relative to its
+/// own light (`anderson::light_scales` of the image `swept` = G(B)): where the sweeps'
+/// area-weighted change says the scene has converged, this says whether every corner
+/// of it has.
+fn worst_element_residual(old: &[DVec3], swept: &[DVec3], area: &[f32]) -> f64 {
+    let (scales, _) = anderson::light_scales(swept, &|e| area[e]);
+    (0..swept.len())
+        .into_par_iter()
+        .with_min_len(ELEMENT_CHUNK)
+        .map(|e| {
+            let change = sum3d((swept[e] - old[e]).abs());
+            if change > 0.0 {
+                change / scales[e]
+            } else {
+                0.0
+            }
+        })
+        .reduce(|| 0.0, f64::max)
 }
 
 /// What a surface source whose linear B has the values `corners` at its corners sends from
@@ -951,6 +971,7 @@ impl Solver {
             DVec2::new(sum3d((b - old[e]).abs()), sum3d(b.abs())) * area[e] as f64
         });
         let (changed, total) = (sums.x, sums.y);
+        self.stats.worst_element_residual = Some(worst_element_residual(old, &swept, area));
         let next = h.acceleration.next(&self.radiosity, swept, |e| area[e]);
         h.basis = Some(std::mem::replace(&mut self.radiosity, next));
         if total > 0.0 { changed / total } else { 0.0 }
