@@ -66,13 +66,8 @@ impl Anderson {
     }
 
     /// The next iterate from the current one, `x`, and its sweep's image `g` = G(x);
-    /// `area(e)` is element e's area.
-    pub fn next(
-        &mut self,
-        x: &[DVec3],
-        g: Vec<DVec3>,
-        area: impl Fn(usize) -> f32 + Sync,
-    ) -> Vec<DVec3> {
+    /// `scales`: [`LightScales::of`] `g`, what each element's residual is weighed against.
+    pub fn next(&mut self, x: &[DVec3], g: Vec<DVec3>, scales: &LightScales) -> Vec<DVec3> {
         if self
             .last
             .as_ref()
@@ -86,7 +81,7 @@ impl Anderson {
             .with_min_len(ELEMENT_CHUNK)
             .map(|(g, x)| *g - *x)
             .collect();
-        let weights = relative_weights(&g, &area);
+        let weights = scales.weights();
         let weight = |e: usize| weights[e];
         let norm = |f: &[DVec3]| dot(|e| f[e], |e| f[e], &weight, f.len()).sqrt();
         match self.last.take() {
@@ -154,41 +149,51 @@ impl Anderson {
     }
 }
 
-/// Each element's weight in the norm, 1 / scale_e² from [`light_scales`], scaled into
-/// (0, 1] by the floor (γ does not depend on the scale). All 1 where everything is black.
-fn relative_weights(g: &[DVec3], area: &(impl Fn(usize) -> f32 + Sync)) -> Vec<f32> {
-    let (scales, floor) = light_scales(g, area);
-    scales
-        .par_iter()
-        .with_min_len(ELEMENT_CHUNK)
-        .map(|scale| {
-            if floor > 0.0 {
-                (floor / scale).powi(2) as f32
-            } else {
-                1.0
-            }
-        })
-        .collect()
+/// The light each element's residual is measured against (see the module
+/// documentation): `per_element[e]` = max(b_e, b_floor), with b_e the sum of element e's
+/// channels and `floor` = b_floor, [`DARK_FLOOR`] times their area-weighted mean (0 where
+/// everything is black). Made once per sweep, for Anderson's norm and for the sweep's
+/// worst element residual.
+pub(super) struct LightScales {
+    pub per_element: Vec<f64>,
+    pub floor: f64,
 }
 
-/// The light each element's residual is measured against: max(b_e, b_floor), with b_e the
-/// sum of its channels in `b` and b_floor [`DARK_FLOOR`] times their area-weighted mean
-/// (see the module documentation); and b_floor, 0 where everything is black.
-pub(super) fn light_scales(b: &[DVec3], area: &(impl Fn(usize) -> f32 + Sync)) -> (Vec<f64>, f64) {
-    let sums = ordered_sum(b.len(), |e| {
-        DVec2::new(b[e].element_sum(), 1.0) * area(e) as f64
-    });
-    let floor = if sums.y > 0.0 {
-        DARK_FLOOR * sums.x / sums.y
-    } else {
-        0.0
-    };
-    let scales = b
-        .par_iter()
-        .with_min_len(ELEMENT_CHUNK)
-        .map(|v| v.element_sum().max(floor))
-        .collect();
-    (scales, floor)
+impl LightScales {
+    /// The scales of radiosities `b` over elements of areas `area(e)`.
+    pub fn of(b: &[DVec3], area: impl Fn(usize) -> f32 + Sync) -> LightScales {
+        let sums = ordered_sum(b.len(), |e| {
+            DVec2::new(b[e].element_sum(), 1.0) * area(e) as f64
+        });
+        let floor = if sums.y > 0.0 {
+            DARK_FLOOR * sums.x / sums.y
+        } else {
+            0.0
+        };
+        let per_element = b
+            .par_iter()
+            .with_min_len(ELEMENT_CHUNK)
+            .map(|v| v.element_sum().max(floor))
+            .collect();
+        LightScales { per_element, floor }
+    }
+
+    /// Each element's weight in the norm, 1 / scale_e² scaled into (0, 1] by the floor
+    /// (γ does not depend on the scale). All 1 where everything is black.
+    fn weights(&self) -> Vec<f32> {
+        let floor = self.floor;
+        self.per_element
+            .par_iter()
+            .with_min_len(ELEMENT_CHUNK)
+            .map(|scale| {
+                if floor > 0.0 {
+                    (floor / scale).powi(2) as f32
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    }
 }
 
 /// Solves A x = b for symmetric positive definite A; `None` if it is not.
@@ -279,7 +284,8 @@ mod tests {
             steps += 1;
             assert!(steps <= 10, "still {} off after 10 steps", error(&x));
             let g = apply(&x);
-            x = acc.next(&x, g, |e| weight[e]);
+            let scales = LightScales::of(&g, |e| weight[e]);
+            x = acc.next(&x, g, &scales);
         }
     }
 

@@ -45,7 +45,7 @@ mod table;
 mod tests;
 pub(super) mod transfer;
 
-use super::anderson::{self, Anderson};
+use super::anderson::{Anderson, LightScales};
 use super::types::Stop;
 use super::{ELEMENT_CHUNK, Solver, ordered_sum, sum3d};
 use crate::accel::Bvh;
@@ -266,11 +266,11 @@ fn linear_at(mesh: &Mesh, node: u32, corners: &[Vec3; 3], x: Vec3) -> Vec3 {
 }
 
 /// The largest residual G(B)_e − B_e of any element in its own equation, relative to its
-/// own light (`anderson::light_scales` of the image `swept` = G(B)): where the sweeps'
+/// own light (`scales`: [`LightScales::of`] the image `swept` = G(B)): where the sweeps'
 /// area-weighted change says the scene has converged, this says whether every corner
 /// of it has.
-fn worst_element_residual(old: &[DVec3], swept: &[DVec3], area: &[f32]) -> f64 {
-    let (scales, _) = anderson::light_scales(swept, &|e| area[e]);
+fn worst_element_residual(old: &[DVec3], swept: &[DVec3], scales: &LightScales) -> f64 {
+    let scales = &scales.per_element;
     (0..swept.len())
         .into_par_iter()
         .with_min_len(ELEMENT_CHUNK)
@@ -971,8 +971,9 @@ impl Solver {
             DVec2::new(sum3d((b - old[e]).abs()), sum3d(b.abs())) * area[e] as f64
         });
         let (changed, total) = (sums.x, sums.y);
-        self.stats.worst_element_residual = Some(worst_element_residual(old, &swept, area));
-        let next = h.acceleration.next(&self.radiosity, swept, |e| area[e]);
+        let scales = LightScales::of(&swept, |e| area[e]);
+        self.stats.worst_element_residual = Some(worst_element_residual(old, &swept, &scales));
+        let next = h.acceleration.next(&self.radiosity, swept, &scales);
         h.basis = Some(std::mem::replace(&mut self.radiosity, next));
         if total > 0.0 { changed / total } else { 0.0 }
     }
