@@ -211,6 +211,23 @@ proptest! {
                     }
                     (h, n) => prop_assert!(false, "segment {a} → {b}: BVH {h:?}, brute force {n:?}"),
                 }
+                // The binary tree's own closest hit (the baseline) finds the same.
+                let own = bvh.closest_hit_binary(a, b - a, 0.01, 0.99, u32::MAX);
+                prop_assert_eq!(
+                    own.map(|h| tris[h.triangle as usize]),
+                    hit.map(|h| tris[h.triangle as usize]),
+                    "segment {} → {}: binary tree against wide", a, b
+                );
+                // Leaving out the nearest triangle, both find what lies behind it.
+                if let Some(h) = hit {
+                    let wide = bvh.closest_hit(a, b - a, 0.01, 0.99, h.triangle);
+                    let own = bvh.closest_hit_binary(a, b - a, 0.01, 0.99, h.triangle);
+                    prop_assert_eq!(
+                        own.map(|h| tris[h.triangle as usize]),
+                        wide.map(|h| tris[h.triangle as usize]),
+                        "segment {} → {} past {}", a, b, h.triangle
+                    );
+                }
             }
         }
         // Near-ties are rare; a comparison that excluded most cases would prove nothing.

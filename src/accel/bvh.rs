@@ -2,6 +2,7 @@
 
 use glam::Vec3;
 
+use super::Hit;
 use super::wide::WideBvh;
 
 /// Bins per axis for the SAH sweep; 16 is the usual quality/speed balance (Wald 2007).
@@ -33,18 +34,6 @@ pub(super) struct Tri {
     pub(super) id: u32,
     /// Fraction of light passing through, 0 = opaque.
     pub(super) transmittance: f32,
-}
-
-/// A ray hit: distance along the (unit or not) direction, the caller's triangle index and
-/// barycentric coordinates (u, v) of the hit on it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    pub t: f32,
-    pub triangle: u32,
-    pub u: f32,
-    pub v: f32,
-    /// The hit triangle's transmittance (0 = opaque).
-    pub transmittance: f32,
 }
 
 /// The share of a segment at its start ([`Bvh::transmittance`]'s `a`, the receiving end)
@@ -256,6 +245,23 @@ impl Bvh {
     /// Nearest hit along `origin + t·direction` for `t` in (`t_min`, `t_max`), ignoring
     /// the triangle `skip` (pass `u32::MAX` for none).
     pub fn closest_hit(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        t_min: f32,
+        t_max: f32,
+        skip: u32,
+    ) -> Option<Hit> {
+        let wide = self.wide.as_ref()?;
+        if !origin.is_finite() || !direction.is_finite() {
+            return None;
+        }
+        wide.closest_hit(origin, direction, t_min, t_max, skip)
+    }
+
+    /// [`Bvh::closest_hit`] by our own binary tree: the baseline of
+    /// examples/bvh_compare.rs, checked by the same property tests.
+    pub fn closest_hit_binary(
         &self,
         origin: Vec3,
         direction: Vec3,
