@@ -56,7 +56,7 @@ use glam::{DVec2, DVec3, Vec3};
 pub use inspect::{ElementLinks, LinkView};
 use link::Link;
 use rayon::prelude::*;
-use sight::{ClusterLight, Sight};
+use sight::{ClusterLight, Sight, StaleSight};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 use table::{LinkTable, StoredLink};
@@ -343,6 +343,9 @@ pub(super) struct Hierarchy {
     /// What each leaf sees, to weigh what the clusters push down to it (see [`sight`]);
     /// `None` until the first round's links are made, and after the leaves change.
     sight: Option<sight::Sight>,
+    /// The sight cast for leaves split since, carried through the splits: refreshed
+    /// instead of cast anew when the links are next matched.
+    stale_sight: Option<StaleSight>,
     /// The leaf node of each element.
     element_node: Vec<u32>,
     /// Per element, its area and the cluster above its patch (`NONE` for none): what the
@@ -424,6 +427,7 @@ impl Hierarchy {
             cluster_send: vec![Sender::default(); clusters.nodes.len()],
             cluster_h: vec![Octants::default(); clusters.nodes.len()],
             sight: None,
+            stale_sight: None,
             clusters,
             links: LinkTable::default(),
             parent: Vec::new(),
@@ -777,7 +781,10 @@ impl Hierarchy {
     /// `opacity`: each element's (`Solver::opacity`, empty where all are opaque).
     fn conservation_caps(&mut self, mesh: &Mesh, bvh: &Bvh, radiosity: &[DVec3], opacity: &[f32]) {
         if self.leaf_sight().is_none() {
-            self.sight = Some(Sight::cast(mesh, bvh));
+            self.sight = Some(match self.stale_sight.take() {
+                Some(stale) => stale.refresh(mesh, bvh),
+                None => Sight::cast(mesh, bvh),
+            });
         }
         if let Some(sight) = self.sight.as_mut() {
             let nodes = (

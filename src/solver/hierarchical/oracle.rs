@@ -28,6 +28,7 @@
 
 use super::clusters::SAMPLES;
 use super::external;
+use super::sight::StaleSight;
 use super::table::LinkTable;
 use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
@@ -1111,6 +1112,7 @@ impl Solver {
             self.external_in[c] = hx;
             self.stats.rays += rays as u64;
         }
+        h.stale_sight = StaleSight::after(h.sight.take(), h.stale_sight.take(), &moved);
         h.grow(&self.mesh);
         self.stats.elements = n;
         self.mesh_version += 1;

@@ -53,8 +53,10 @@
 //! clusters): taking nothing there left a closed box at ρ = 0.999, cut to 3,000 links,
 //! at 68 % of its power balance, a form-factor sum short by 5·10⁻⁴ on average.
 //!
-//! The rays are cast when a round's links are first used after the leaves changed, and
-//! matched against the surface links again whenever the links change.
+//! The rays are cast when a round's links are first used, and matched against the
+//! surface links again whenever the links change. When leaves split, the rays of those
+//! kept whole stay ([`StaleSight`]): only the new leaves' rays and those that hit a leaf
+//! since split are cast again, which gives the sight a new cast would.
 
 use super::NONE;
 use super::table::LinkTable;
@@ -62,7 +64,7 @@ use super::{NodeId, Octants};
 use crate::accel::Bvh;
 use crate::geometry::orthonormal_basis;
 use crate::geometry::sampling::{cosine_direction, hash, unit};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Moved};
 use crate::solver::form_factor::element_seed;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -80,6 +82,27 @@ struct SightRay {
     /// Whether the clusters carry its light: no link to the leaf or its quadtree
     /// ancestors has a source that holds what it hits.
     by_clusters: bool,
+}
+
+impl SightRay {
+    /// Ray `k` of leaf `e`: cell k of a 4 × 4 stratified grid over the cosine-weighted
+    /// hemisphere, jittered by a hash of the leaf's corners, from its centroid.
+    fn cast(mesh: &Mesh, bvh: &Bvh, e: usize, k: usize) -> SightRay {
+        let element = &mesh.elements[e];
+        let own = mesh.patches[element.patch as usize].scene_triangle;
+        let n = element.normal;
+        let seed = element_seed(element) ^ 0x5167_4854;
+        let from = element.centroid() + n * mesh.epsilon();
+        let (i, j) = ((k % 4) as f32, (k / 4) as f32);
+        let h = hash(seed ^ k as u64);
+        let u = (i + unit(h)) / 4.0;
+        let v = (j + unit(hash(h))) / 4.0;
+        let w = cosine_direction(n, orthonormal_basis(n), u, v);
+        SightRay {
+            element: first_stop(mesh, bvh, (from, w, own), hash(h ^ 0x7A55)),
+            by_clusters: false,
+        }
+    }
 }
 
 /// Every leaf's rays.
@@ -136,29 +159,10 @@ impl ClusterLight {
 impl Sight {
     /// Casts every leaf's rays.
     pub fn cast(mesh: &Mesh, bvh: &Bvh) -> Sight {
-        let eps = mesh.epsilon();
         let rays: Vec<SightRay> = (0..mesh.elements.len())
             .into_par_iter()
             .with_min_len(256)
-            .flat_map_iter(|e| {
-                let element = &mesh.elements[e];
-                let own = mesh.patches[element.patch as usize].scene_triangle;
-                let n = element.normal;
-                let basis = orthonormal_basis(n);
-                let seed = element_seed(element) ^ 0x5167_4854;
-                let from = element.centroid() + n * eps;
-                (0..RAYS).map(move |k| {
-                    let (i, j) = ((k % 4) as f32, (k / 4) as f32);
-                    let h = hash(seed ^ k as u64);
-                    let u = (i + unit(h)) / 4.0;
-                    let v = (j + unit(hash(h))) / 4.0;
-                    let w = cosine_direction(n, basis, u, v);
-                    SightRay {
-                        element: first_stop(mesh, bvh, (from, w, own), hash(h ^ 0x7A55)),
-                        by_clusters: false,
-                    }
-                })
-            })
+            .flat_map_iter(|e| (0..RAYS).map(move |k| SightRay::cast(mesh, bvh, e, k)))
             .collect();
         Sight {
             rays,
@@ -281,6 +285,89 @@ impl Sight {
     }
 }
 
+/// A sight cast for leaves some of which have since been split. What it holds stays
+/// true of the leaves kept whole: their rays are the ones they would cast again (the
+/// directions come from their corners), and so are the hits on leaves kept whole.
+pub(super) struct StaleSight {
+    sight: Sight,
+    /// For each leaf it was cast for, its index now; `NONE` where it was split.
+    now: Vec<u32>,
+}
+
+impl StaleSight {
+    /// After a refinement of the leaves (`moved`: where each went): `sight` if it was
+    /// cast for them, or `stale` if it was, carried on.
+    pub fn after(
+        sight: Option<Sight>,
+        stale: Option<StaleSight>,
+        moved: &[Moved],
+    ) -> Option<StaleSight> {
+        let now = |m: &Moved| match m {
+            Moved::Kept(k) => *k,
+            Moved::Split(_) => NONE,
+        };
+        match (sight.filter(|s| s.fits(moved.len())), stale) {
+            (Some(sight), _) => Some(StaleSight {
+                sight,
+                now: moved.iter().map(now).collect(),
+            }),
+            (None, Some(mut stale)) if stale.now.len() == stale.sight.rays.len() / RAYS => {
+                for n in &mut stale.now {
+                    if *n != NONE {
+                        *n = moved.get(*n as usize).map_or(NONE, now);
+                    }
+                }
+                Some(stale)
+            }
+            _ => None,
+        }
+    }
+
+    /// The sight of `mesh`, casting only what changed: the new leaves' rays, and the rays
+    /// of a kept leaf that hit a leaf since split (which of its children holds the hit is
+    /// not kept). This is the sight [`Sight::cast`] would make, for the rays of what
+    /// changed. Its links are to be matched again ([`Sight::match_links`]) and F_s set.
+    pub fn refresh(self, mesh: &Mesh, bvh: &Bvh) -> Sight {
+        let StaleSight { sight, now } = self;
+        let mut was = vec![NONE; mesh.elements.len()];
+        for (old, &k) in now.iter().enumerate() {
+            if let Some(w) = was.get_mut(k as usize) {
+                *w = old as u32;
+            }
+        }
+        // Ray k of the leaf that was `old`, where it still holds: what it hits now, `NONE`
+        // where it left the scene (it still does); `None` where the hit was split.
+        let kept = &|old: u32, k: usize| -> Option<u32> {
+            if old == NONE {
+                return None;
+            }
+            match sight.rays[old as usize * RAYS + k].element {
+                NONE => Some(NONE),
+                hit => Some(now[hit as usize]).filter(|&h| h != NONE),
+            }
+        };
+        let rays: Vec<SightRay> = (0..mesh.elements.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .flat_map_iter(|e| {
+                let old = was[e];
+                (0..RAYS).map(move |k| match kept(old, k) {
+                    Some(element) => SightRay {
+                        element,
+                        by_clusters: false,
+                    },
+                    None => SightRay::cast(mesh, bvh, e, k),
+                })
+            })
+            .collect();
+        Sight {
+            rays,
+            siblings: siblings(mesh),
+            surface_share: Vec::new(),
+        }
+    }
+}
+
 /// The element where the ray from `from` along `w` (leaving triangle `own`) stops, or
 /// `NONE` where it leaves the scene or meets the back of a single-sided surface. It passes
 /// a triangle of transmittance τ (an alpha cut-out's uncovered share, glass) with
@@ -310,4 +397,46 @@ fn siblings(mesh: &Mesh) -> Vec<[u32; 4]> {
         }
     }
     siblings
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::MeshSettings;
+    use crate::scene::builtin;
+
+    fn hits(sight: &Sight) -> Vec<u32> {
+        sight.rays.iter().map(|r| r.element).collect()
+    }
+
+    #[test]
+    fn a_sight_carried_through_splits_is_the_one_cast_anew() {
+        // The Cornell box, its leaves split twice (every third, then every fifth of the
+        // new ones, so some split leaves are split again): refreshing the sight cast
+        // before must give every leaf the hits a new cast gives it, exactly (the same
+        // rays, traced by the same code).
+        let scene = builtin::cornell_box();
+        let mut mesh = Mesh::build(
+            &scene,
+            &MeshSettings {
+                element_size: Some(0.15),
+                ..Default::default()
+            },
+        );
+        let bvh = Bvh::build(&mesh.triangles, &mesh.transmittance);
+        let mut stale = None;
+        let mut sight = Some(Sight::cast(&mesh, &bvh));
+        for every in [3, 5] {
+            let marked: Vec<bool> = (0..mesh.elements.len()).map(|e| e % every == 0).collect();
+            let moved = mesh.refine(&marked);
+            stale = StaleSight::after(sight.take(), stale, &moved);
+        }
+        let carried = stale.expect("carried").refresh(&mesh, &bvh);
+        let fresh = Sight::cast(&mesh, &bvh);
+        assert_eq!(carried.rays.len(), mesh.elements.len() * RAYS);
+        let (a, b) = (hits(&carried), hits(&fresh));
+        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        assert_eq!(differ, 0, "{differ} of {} rays differ", a.len());
+        assert_eq!(carried.siblings, fresh.siblings);
+    }
 }
