@@ -5,11 +5,14 @@
 //! [`build`] runs them, looking at the cancel flag between stages; the long stages look
 //! at it inside too.
 
+use super::PATCH_REACH;
 use super::sizing::{
     PATCH_PER_ELEMENT, choose_element_size, default_budget, depth_for, sides, source_sides,
     split_patches,
 };
-use super::{DisplayMesh, Element, Mesh, MeshSettings, Patch, QuadNode, contact, shadow};
+use super::{
+    DisplayMesh, Element, Mesh, MeshSettings, Patch, PatchGrid, QuadNode, contact, shadow,
+};
 use super::{scene_triangle, split as cdt, surface_values};
 use crate::accel::Bvh;
 use crate::cancel::{Cancelled, check};
@@ -408,6 +411,7 @@ fn emit(input: Input, sized: Sized, cancel: &AtomicBool) -> Result<Mesh, Cancell
         warnings: input.warnings,
         cut_edges,
         textures: Vec::new(),
+        patch_grid: PatchGrid::default(),
     };
     let mut pieces = Vec::new();
     for (k, s) in sources.iter().enumerate() {
@@ -580,7 +584,8 @@ impl Mesh {
         index
     }
 
-    /// Sets `triangle_patches` from the patches, which come consecutive per triangle.
+    /// Sets `triangle_patches` from the patches, which come consecutive per triangle, and
+    /// the grids of those cut into many (`patch_grid`).
     fn finish_triangle_ranges(&mut self) {
         let mut k = 0;
         while k < self.patches.len() {
@@ -591,6 +596,13 @@ impl Mesh {
             }
             self.triangle_patches[t as usize] = start as u32..k as u32;
         }
+        let patches = &self.patches;
+        self.patch_grid = PatchGrid::build(
+            &self.triangles,
+            &self.triangle_patches,
+            |p| patches[p as usize].verts,
+            PATCH_REACH * self.epsilon(),
+        );
     }
 }
 

@@ -28,6 +28,7 @@ mod contact;
 mod display;
 mod hanging;
 mod hard_shadows;
+mod patch_grid;
 mod shadow;
 mod sizing;
 mod split;
@@ -42,6 +43,7 @@ pub use display::{
 };
 pub use hanging::Hanging;
 pub use hard_shadows::LightTargets;
+pub use patch_grid::PatchGrid;
 pub use texture::{PatchTexture, barycentric};
 
 use crate::accel::Bvh;
@@ -89,6 +91,10 @@ pub const DEFAULT_ELEMENTS: usize = 3000;
 /// reflects a thousandth, so that its irradiance H = (B − E) / ρ, which the display draws
 /// under its texture, stays defined.
 pub const MIN_OPACITY: f32 = 1e-3;
+
+/// How close to a point, in ray offsets ([`Mesh::epsilon`]), a patch must come for
+/// [`Mesh::element_at`] to take it without looking further.
+const PATCH_REACH: f32 = 0.1;
 
 /// A shooter: a piece of one input triangle, seen from one side.
 #[derive(Clone, Debug)]
@@ -199,6 +205,8 @@ pub struct Mesh {
     /// Per patch, its texture coordinates and means for the display (`texture`); empty
     /// when the scene has no textures.
     pub textures: Vec<PatchTexture>,
+    /// Which patches of a triangle cut into many may hold a point (`element_at`).
+    pub patch_grid: PatchGrid,
 }
 
 impl Mesh {
@@ -237,12 +245,34 @@ impl Mesh {
     /// The triangle's patches on that side tile it, so the first one within a tenth of the
     /// ray offset ([`Mesh::epsilon`]) of `x` holds it (or borders it that closely), and the
     /// search stops there: a wall's triangle is cut into hundreds of patches, and going
-    /// through all of them for each of the leaves' rays took 5 % of Sponza's solve.
+    /// through all of them for each of the leaves' rays took 5 % of Sponza's solve. On a
+    /// triangle cut into many, only the patches its [`PatchGrid`] lists near `x` are
+    /// looked at first, which finds the same patch; where none of them is that close, all.
     pub fn element_at(&self, triangle: u32, x: Vec3, toward: Vec3) -> Option<u32> {
         let range = self.triangle_patches.get(triangle as usize)?.clone();
-        let inside = (0.1 * self.epsilon()).powi(2);
+        let inside = (PATCH_REACH * self.epsilon()).powi(2);
+        let near = self
+            .patch_grid
+            .near(triangle, &self.triangles[triangle as usize], x)
+            .and_then(|near| self.nearest_patch(near.iter().copied(), x, toward, inside))
+            .filter(|(d, _)| *d <= inside);
+        let (_, p) = near.or_else(|| self.nearest_patch(range, x, toward, inside))?;
+        let root = &self.nodes[self.patches[p as usize].root as usize];
+        let (_, bary) = closest_point_on_triangle(x, &root.verts);
+        self.leaf_at(root, bary.map(f64::from))
+    }
+
+    /// Among `patches`, those facing `toward`: the first within squared distance `inside`
+    /// of `x`, or else the nearest; with its squared distance.
+    fn nearest_patch(
+        &self,
+        patches: impl Iterator<Item = u32>,
+        x: Vec3,
+        toward: Vec3,
+        inside: f32,
+    ) -> Option<(f32, u32)> {
         let mut best: Option<(f32, u32)> = None;
-        for p in range {
+        for p in patches {
             let patch = &self.patches[p as usize];
             if patch.normal.dot(toward) <= 0.0 {
                 continue;
@@ -256,10 +286,7 @@ impl Mesh {
                 }
             }
         }
-        let (_, p) = best?;
-        let root = &self.nodes[self.patches[p as usize].root as usize];
-        let (_, bary) = closest_point_on_triangle(x, &root.verts);
-        self.leaf_at(root, bary.map(f64::from))
+        best
     }
 
     /// The element of the quadtree leaf under `node` that holds the point at barycentric
@@ -488,6 +515,66 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The patch grid only narrows the search: on triangles cut into many patches,
+    /// points inside patches, on their corners and edges, just off them and off the
+    /// triangle find what the scan of all the triangle's patches finds.
+    #[test]
+    fn element_at_with_the_patch_grid_finds_what_the_full_scan_finds() {
+        use crate::geometry::sampling::{hash, point_in_triangle, unit};
+        let scene = builtin::cornell_box();
+        let mesh = Mesh::build(
+            &scene,
+            &MeshSettings {
+                element_size: Some(0.01),
+                ..Default::default()
+            },
+        );
+        let gridded: Vec<usize> = (0..mesh.triangles.len())
+            .filter(|&t| mesh.patch_grid.covers(t))
+            .collect();
+        assert!(
+            gridded.len() >= 10,
+            "{} triangles have a grid",
+            gridded.len()
+        );
+        let scan = |t: usize, x: Vec3, toward: Vec3| {
+            let range = mesh.triangle_patches[t].clone();
+            let inside = (PATCH_REACH * mesh.epsilon()).powi(2);
+            mesh.nearest_patch(range, x, toward, inside).map(|(_, p)| p)
+        };
+        let eps = mesh.epsilon();
+        let (mut k, mut checked) = (0u64, 0);
+        for &t in &gridded {
+            for p in mesh.triangle_patches[t].clone() {
+                let patch = &mesh.patches[p as usize];
+                let [a, b, c] = patch.verts;
+                k += 1;
+                let off = Vec3::new(unit(hash(k)), unit(hash(k ^ 1)), unit(hash(k ^ 2))) - 0.5;
+                let points = [
+                    point_in_triangle(&patch.verts, unit(hash(k ^ 3)), unit(hash(k ^ 4))),
+                    a,
+                    (a + b) * 0.5,
+                    (b + c) * 0.5 + off * (0.1 * eps),
+                    c + off * eps,
+                    a + (a - c) * 0.3,
+                ];
+                for x in points {
+                    for toward in [patch.normal, -patch.normal] {
+                        let got = mesh.element_at(t as u32, x, toward);
+                        let want = scan(t, x, toward).and_then(|p| {
+                            let root = &mesh.nodes[mesh.patches[p as usize].root as usize];
+                            let (_, bary) = closest_point_on_triangle(x, &root.verts);
+                            mesh.leaf_at(root, bary.map(f64::from))
+                        });
+                        assert_eq!(got, want, "triangle {t}, patch {p}, point {x}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked}");
     }
 
     #[test]
