@@ -257,6 +257,11 @@ impl Mesh {
             .and_then(|near| self.nearest_patch(near.iter().copied(), x, toward, inside))
             .filter(|(d, _)| *d <= inside);
         let (_, p) = near.or_else(|| self.nearest_patch(range, x, toward, inside))?;
+        self.element_in_patch(p, x)
+    }
+
+    /// The element of patch `p` that holds `x` (or its projection on the patch).
+    fn element_in_patch(&self, p: u32, x: Vec3) -> Option<u32> {
         let root = &self.nodes[self.patches[p as usize].root as usize];
         let (_, bary) = closest_point_on_triangle(x, &root.verts);
         self.leaf_at(root, bary.map(f64::from))
@@ -563,11 +568,7 @@ mod tests {
                 for x in points {
                     for toward in [patch.normal, -patch.normal] {
                         let got = mesh.element_at(t as u32, x, toward);
-                        let want = scan(t, x, toward).and_then(|p| {
-                            let root = &mesh.nodes[mesh.patches[p as usize].root as usize];
-                            let (_, bary) = closest_point_on_triangle(x, &root.verts);
-                            mesh.leaf_at(root, bary.map(f64::from))
-                        });
+                        let want = scan(t, x, toward).and_then(|p| mesh.element_in_patch(p, x));
                         assert_eq!(got, want, "triangle {t}, patch {p}, point {x}");
                         checked += 1;
                     }

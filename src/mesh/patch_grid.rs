@@ -11,7 +11,8 @@
 //! cell, in the same order as in the triangle's range, so the lookup's answer is the full
 //! scan's.
 
-use glam::{DVec3, Vec3};
+use crate::geometry::shortest_altitude;
+use glam::Vec3;
 use std::ops::Range;
 
 /// Triangles with at most this many patches are scanned whole.
@@ -42,7 +43,9 @@ pub struct PatchGrid {
 }
 
 /// Barycentric (u, v) of `x` projected on the plane of triangle `t`, along its edges
-/// t[1] − t[0] and t[2] − t[0]; `None` for a degenerate triangle.
+/// t[1] − t[0] and t[2] − t[0]; `None` for a degenerate triangle. In f64, unlike
+/// `texture::barycentric`: the boxes are widened by a fraction of a ray offset over the
+/// triangle's altitude, and f32's rounding of a sliver's coordinates could exceed that.
 fn barycentric(t: &[Vec3; 3], x: Vec3) -> Option<(f64, f64)> {
     let [a, b, c] = t.map(|p| p.as_dvec3());
     let (e1, e2, d) = (b - a, c - a, x.as_dvec3() - a);
@@ -59,17 +62,6 @@ fn barycentric(t: &[Vec3; 3], x: Vec3) -> Option<(f64, f64)> {
 /// (the first or last for what lies beyond).
 fn cell_of(x: f64, side: usize) -> usize {
     (x * side as f64).floor().clamp(0.0, side as f64 - 1.0) as usize
-}
-
-/// The smallest altitude of triangle `t`.
-fn shortest_altitude(t: &[Vec3; 3]) -> f64 {
-    let [a, b, c] = t.map(|p| p.as_dvec3());
-    let twice_area = (b - a).cross(c - a).length();
-    let longest = [b - a, c - b, a - c]
-        .map(DVec3::length)
-        .into_iter()
-        .fold(0.0, f64::max);
-    twice_area / longest
 }
 
 impl PatchGrid {
@@ -92,7 +84,7 @@ impl PatchGrid {
                 continue;
             }
             let tri = &triangles[t];
-            let altitude = shortest_altitude(tri);
+            let altitude = shortest_altitude(tri) as f64;
             if !(altitude > 0.0 && altitude.is_finite()) {
                 continue;
             }
@@ -154,15 +146,8 @@ impl PatchGrid {
     }
 
     /// Whether triangle `t` has a grid.
+    #[cfg(test)]
     pub fn covers(&self, t: usize) -> bool {
         self.index.get(t).is_some_and(|&i| i != u32::MAX)
-    }
-
-    /// Bytes it takes.
-    pub fn bytes(&self) -> usize {
-        self.index.len() * 4
-            + self.grids.len() * std::mem::size_of::<Grid>()
-            + self.cells.len() * std::mem::size_of::<Range<u32>>()
-            + self.patches.len() * 4
     }
 }

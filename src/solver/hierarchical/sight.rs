@@ -311,7 +311,7 @@ impl StaleSight {
                 sight,
                 now: moved.iter().map(now).collect(),
             }),
-            (None, Some(mut stale)) if stale.now.len() == stale.sight.rays.len() / RAYS => {
+            (None, Some(mut stale)) => {
                 for n in &mut stale.now {
                     if *n != NONE {
                         *n = moved.get(*n as usize).map_or(NONE, now);
