@@ -391,6 +391,11 @@ pub(super) struct Hierarchy {
     /// What the next refinement round's threshold is multiplied by: the rounds go from
     /// coarse to fine (see [`COARSE_START`]), 1 from the last of them on.
     coarseness: f32,
+    /// Whether the first refinement round decides the links from lit sources first
+    /// (see `oracle::Round::unlit_pairs`; off only to test what it changes), and whether
+    /// it was started again in breadth-first order (see `oracle::Round::restart`).
+    lit_first: bool,
+    first_round_restarted: bool,
     /// The scene's mean radiosity (largest channel) when the last refinement round
     /// began, zero before the first sweep (no receiver counts as dark): receivers darker
     /// than it are held to a threshold scaled by their own radiosity (see
@@ -456,6 +461,8 @@ impl Hierarchy {
             round: None,
             threshold: 0.0,
             coarseness: COARSE_START,
+            lit_first: true,
+            first_round_restarted: false,
             dark_mean: 0.0,
             sweeps: 0,
             incremental_sweeps: 0,
@@ -899,6 +906,14 @@ impl Solver {
                     h.index_links_by_source(&self.mesh);
                 }
                 Some(changed) => {
+                    if h.sweeps == 0 && h.first_round_restarted {
+                        // The picture kept through the restarted round came from coarser
+                        // links and may hold light where these hold none: the inside of a
+                        // sealed sphere of ρ = 0.999 would take thousands of sweeps to
+                        // give it back (nvpro: 581 sweeps instead of 75). The sweeps start
+                        // from E' instead, as they would have without the restart.
+                        self.radiosity = self.source.iter().map(|s| s.as_dvec3()).collect();
+                    }
                     h.edited_in_round = false;
                     h.stage = Stage::Sweep;
                     h.acceleration.restart();
