@@ -113,7 +113,7 @@ pub(super) struct Round {
     /// makes a quarter more light), even with only the first 65 k links in that order.
     /// Started again, it ends with the very links of the breadth-first order (21.5 %, the
     /// final gather 8.1 %, as before), about 4 s later (`solve`: 23.3 → 27.2 s and 23.8 →
-    /// 27.7 s, one after the other), and shows the emitters' light from 2 s on (72 % off
+    /// 27.7 s, one after the other), and shows the emitters' light from 2 s on (67 % off
     /// at 5–25 s instead of 81 %).
     restart: bool,
     leaves: Vec<u32>,
@@ -643,18 +643,36 @@ impl View<'_> {
         (graded(r, fr), graded(s, fs))
     }
 
+    /// Gives the links among `links` that skipped their transfer (a cluster at either end
+    /// and a kernel range the oracle could not keep) the transfer they would carry if
+    /// kept; returns the rays cast. For the previews of links that wait for a leaf split
+    /// (the sweeps after the round take a cluster link's light along the leaves' rays, not
+    /// from its transfer: `sight`). The decisions on such a link do not change: its spread
+    /// is the same or larger (a shadow boundary across it), and it was already above its
+    /// threshold.
+    fn carry_skipped(&self, bvh: &crate::accel::Bvh, links: &mut [Link]) -> u64 {
+        links
+            .par_iter_mut()
+            .with_min_len(256)
+            .map(|l| {
+                let skipped = (l.receiver.cluster().is_some() || l.source.cluster().is_some())
+                    && l.transfer.values().iter().all(|v| *v == 0.0);
+                if !skipped {
+                    return 0;
+                }
+                match self.link_keeping(bvh, l.receiver, l.source, f32::INFINITY) {
+                    Some((carried, rays)) => {
+                        *l = carried;
+                        rays as u64
+                    }
+                    None => 0,
+                }
+            })
+            .sum()
+    }
+
     /// The link from `s` to `r`, or `None` when it provably carries nothing.
     fn link(&self, bvh: &crate::accel::Bvh, r: NodeId, s: NodeId) -> Option<(Link, u32)> {
-        if r.cluster().is_none()
-            && s.cluster().is_none()
-            && self.h.node_patch[r.0 as usize] == self.h.node_patch[s.0 as usize]
-        {
-            return None; // a plane does not see itself
-        }
-        let (rs, ss) = (self.shape(r), self.shape(s));
-        if transfer::blind(&rs, &ss, self.mesh.epsilon()) {
-            return None;
-        }
         // The largest spread the oracle could keep a cluster link with (see `estimate`;
         // the source's variation only adds to the error): infinite past the link budget.
         let keep_spread = if r.cluster().is_some() || s.cluster().is_some() {
@@ -667,6 +685,28 @@ impl View<'_> {
         } else {
             f32::INFINITY
         };
+        self.link_keeping(bvh, r, s, keep_spread)
+    }
+
+    /// The link from `s` to `r` (see [`View::link`]), a cluster link whose kernel range
+    /// is above `keep_spread` skipping its transfer.
+    fn link_keeping(
+        &self,
+        bvh: &crate::accel::Bvh,
+        r: NodeId,
+        s: NodeId,
+        keep_spread: f32,
+    ) -> Option<(Link, u32)> {
+        if r.cluster().is_none()
+            && s.cluster().is_none()
+            && self.h.node_patch[r.0 as usize] == self.h.node_patch[s.0 as usize]
+        {
+            return None; // a plane does not see itself
+        }
+        let (rs, ss) = (self.shape(r), self.shape(s));
+        if transfer::blind(&rs, &ss, self.mesh.epsilon()) {
+            return None;
+        }
         let t = transfer::evaluate(
             bvh,
             self.mesh.epsilon(),
@@ -1039,6 +1079,7 @@ impl Solver {
                 .zip(decisions.par_chunks(APPLY_CHUNK))
                 .map(|(links, decisions)| view.apply(links, decisions, round.defer_unlit))
                 .collect();
+            let waited = round.waiting.len();
             for mut o in outcomes {
                 round.kept.append(&mut o.kept);
                 round.stuck.append(&mut o.stuck);
@@ -1048,6 +1089,12 @@ impl Solver {
                 round.deferred |= !o.unlit_pairs.is_empty();
                 round.unlit_pairs.append(&mut o.unlit_pairs);
                 round.unlit_parents.append(&mut o.unlit_parents);
+            }
+            if round.defer_unlit {
+                // The light's links waiting for a leaf split (a large emitter's leaf that
+                // must split before it can link to a cluster) bring their light to the
+                // previews meanwhile.
+                self.stats.rays += view.carry_skipped(&self.bvh, &mut round.waiting[waited..]);
             }
             round.work = Vec::new();
             round.changed |= !round.pairs.is_empty() || !round.unlit_pairs.is_empty();
