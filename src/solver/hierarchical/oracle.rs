@@ -96,7 +96,7 @@ pub(super) struct Round {
     /// `bench builtin:cornell --methods hierarchical` against the path-traced reference,
     /// one run after the other: 19.5 → 9.2 % at 1 s, 8.9 → 5.9 % at 1.5 s, 5.2 → 4.1 % at
     /// 2 s, 3.1 → 2.7 % at 4 s, converged the same (1.55 %, 37 sweeps). vinc3r's box: 92
-    /// → 72 % at 0.5 s, 90 → 54 % at 5 s. A scene lit by a sky, a sun or lamps outside
+    /// → 67 % at 0.5 s, 90 → 49 % at 5 s. A scene lit by a sky, a sun or lamps outside
     /// the mesh has its first bounce in E' already (Sponza), and keeps the breadth-first
     /// order.
     unlit_pairs: Vec<(NodeId, NodeId)>,
