@@ -342,7 +342,7 @@ impl View<'_> {
     fn apply(&self, links: &[Link], decisions: &[Decision], defer_unlit: bool) -> Outcome {
         let mut o = Outcome::default();
         for (l, d) in links.iter().zip(decisions) {
-            let mut pairs = Vec::new();
+            let start = o.pairs.len();
             match d {
                 Decision::Keep => o.kept.push(*l),
                 Decision::Stuck => o.stuck.push(*l),
@@ -350,28 +350,34 @@ impl View<'_> {
                     o.leaves.push(*n);
                     o.waiting.push(*l);
                 }
-                Decision::Receiver => self.for_children(l.receiver, |c| pairs.push((c, l.source))),
-                Decision::Source => self.for_children(l.source, |c| pairs.push((l.receiver, c))),
+                Decision::Receiver => {
+                    self.for_children(l.receiver, |c| o.pairs.push((c, l.source)))
+                }
+                Decision::Source => self.for_children(l.source, |c| o.pairs.push((l.receiver, c))),
                 Decision::Both => self.for_children(l.receiver, |a| {
-                    self.for_children(l.receiver, |b| pairs.push((a, b)))
+                    self.for_children(l.receiver, |b| o.pairs.push((a, b)))
                 }),
             }
-            if !defer_unlit {
-                o.pairs.append(&mut pairs);
-            } else if !self.lit(l.source) {
+            if !defer_unlit || o.pairs.len() == start {
+                continue;
+            }
+            if !self.lit(l.source) {
                 // The children of a source without light have none either.
-                if !pairs.is_empty() {
-                    o.unlit_parents.push(*l);
-                }
-                o.unlit_pairs.append(&mut pairs);
+                o.unlit_parents.push(*l);
+                o.unlit_pairs.extend(o.pairs.drain(start..));
             } else {
-                for p in pairs {
+                // This link's pairs from unlit sources move out, the others stay in order.
+                let mut kept = start;
+                for i in start..o.pairs.len() {
+                    let p = o.pairs[i];
                     if self.lit(p.1) {
-                        o.pairs.push(p);
+                        o.pairs[kept] = p;
+                        kept += 1;
                     } else {
                         o.unlit_pairs.push(p);
                     }
                 }
+                o.pairs.truncate(kept);
             }
         }
         o
@@ -1015,11 +1021,14 @@ impl Solver {
                 // holds the last round's links, whose solution is already shown. None past
                 // the link budget (but the first): the links are then final, and the
                 // round's own sweeps follow as soon as its last generation is decided.
-                let cover = round.kept.len()
-                    + round.stuck.len()
-                    + round.work.len()
-                    + round.waiting.len()
-                    + round.unlit_parents.len();
+                let held = [
+                    &round.kept[..],
+                    &round.stuck,
+                    &round.work,
+                    &round.waiting,
+                    &round.unlit_parents,
+                ];
+                let cover = held.iter().map(|links| links.len()).sum();
                 let cost = preview_cost(cover, self.mesh.elements.len());
                 let first = round.previewed == 0;
                 let growth = if h.sweeps == 0 {
@@ -1041,16 +1050,7 @@ impl Solver {
                     let allowed = (self.stats.rays as f64 * PREVIEW_LINKS_PER_RAY) as usize;
                     let sweeps = (allowed.saturating_sub(round.preview_spent) / cost)
                         .clamp(1, PREVIEW_SWEEPS);
-                    let links = [
-                        &round.kept[..],
-                        &round.stuck,
-                        &round.work,
-                        &round.waiting,
-                        &round.unlit_parents,
-                    ]
-                    .into_iter()
-                    .flatten()
-                    .collect();
+                    let links = held.into_iter().flatten().collect();
                     round.preview_spent += cost * self.preview(h, links, sweeps);
                 }
             }
