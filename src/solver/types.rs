@@ -178,6 +178,16 @@ pub struct Stats {
     /// the whole scene.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub first_solution_seconds: Option<f64>,
+    /// Hierarchical: the share of the light arriving at the leaves (area-weighted,
+    /// channels summed, in the last full sweep) that the links to clusters bring. The
+    /// rest comes through surface links, whose transfer is computed per link; this part
+    /// is estimated along each leaf's 16 rays (see `solver::hierarchical::sight`), so where
+    /// it is large and what those rays hit differs much in brightness (a small lamp
+    /// reached through clusters), the picture shows their noise. Small where refinement
+    /// reached the surfaces (the built-in Cornell box), large where the link budget
+    /// stopped it early.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cluster_light_share: Option<f64>,
     /// Hierarchical: refinement stopped at the link budget (`max_links`) before the
     /// oracle was satisfied everywhere.
     #[serde(skip_serializing_if = "Option::is_none")]

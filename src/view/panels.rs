@@ -199,6 +199,14 @@ impl App {
                     },
                 );
             }
+            if let Some(share) = s.cluster_light_share {
+                // The part of the light a leaf's 16 rays estimate (see `Stats`): where it
+                // is large, the picture's mottling is their noise.
+                row(
+                    "light along rays",
+                    format!("{:.1} % (from clusters)", 100.0 * share),
+                );
+            }
             if let Some(t) = s.first_solution_seconds {
                 // A small scene's first preview comes within milliseconds.
                 let shown = if t < 0.1 {

@@ -748,13 +748,27 @@ impl Hierarchy {
     /// Each ancestor's linear H is evaluated at the leaf's centroid (so a node's children
     /// receive, area-weighted, exactly what it gathered: push conserves power).
     fn leaf_irradiance_linear(&self, mesh: &Mesh, element: usize, down: &ClusterLight) -> Vec3 {
-        let mut h = self.leaf_surface_irradiance(mesh, element);
+        let (surfaces, clusters) = self.leaf_irradiance_parts(mesh, element, down);
+        surfaces + clusters
+    }
+
+    /// [`Hierarchy::leaf_irradiance_linear`] in its two parts: what the surface links
+    /// bring, and what the links to clusters bring (along the leaf's rays, see [`sight`]).
+    fn leaf_irradiance_parts(
+        &self,
+        mesh: &Mesh,
+        element: usize,
+        down: &ClusterLight,
+    ) -> (Vec3, Vec3) {
+        let surfaces = self.leaf_surface_irradiance(mesh, element);
         let c = self.element_cluster[element];
-        if c != NONE {
+        let clusters = if c != NONE {
             let normal = mesh.elements[element].normal;
-            h += Sight::leaf(self.leaf_sight(), element, normal, c, down);
-        }
-        h
+            Sight::leaf(self.leaf_sight(), element, normal, c, down)
+        } else {
+            Vec3::ZERO
+        };
+        (surfaces, clusters)
     }
 
     /// A leaf's H from [`Hierarchy::leaf_irradiance_linear`]: the negative values that
@@ -966,16 +980,32 @@ impl Solver {
             h.pull(mesh, &self.radiosity);
             h.gather(mesh);
             let down = h.cluster_down(&self.radiosity, &self.opacity);
-            // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
-            // at once (`edits`); the linear H for incremental sweeps.
-            (h.leaf_linear, self.gathered) = (0..mesh.elements.len())
+            let parts: Vec<(Vec3, Vec3)> = (0..mesh.elements.len())
                 .into_par_iter()
                 .with_min_len(1024)
-                .map(|e| {
-                    let linear = h.leaf_irradiance_linear(mesh, e, &down);
+                .map(|e| h.leaf_irradiance_parts(mesh, e, &down))
+                .collect();
+            // The gathered H is kept for edits: B = E' + ρ H answers a reflectance change
+            // at once (`edits`); the linear H for incremental sweeps.
+            (h.leaf_linear, self.gathered) = parts
+                .par_iter()
+                .enumerate()
+                .with_min_len(1024)
+                .map(|(e, (surfaces, clusters))| {
+                    let linear = surfaces + clusters;
                     (linear, h.capped(e, linear).as_dvec3())
                 })
                 .unzip();
+            let area = &h.element_area;
+            let light = ordered_sum(parts.len(), |e| {
+                let (surfaces, clusters) = parts[e];
+                let a = area[e] as f64;
+                DVec2::new(
+                    clusters.element_sum() as f64,
+                    (surfaces + clusters).element_sum() as f64,
+                ) * a
+            });
+            self.stats.cluster_light_share = (light.y > 0.0).then(|| light.x / light.y);
         }
         let (source, reflectance) = (&self.source, &self.reflectance);
         let swept: Vec<DVec3> = self
