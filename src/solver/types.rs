@@ -182,10 +182,11 @@ pub struct Stats {
     /// channels summed, in the last full sweep) that the links to clusters bring. The
     /// rest comes through surface links, whose transfer is computed per link; this part
     /// is estimated along each leaf's 16 rays (see `solver::hierarchical::sight`), so where
-    /// it is large and what those rays hit differs much in brightness (a small lamp
-    /// reached through clusters), the picture shows their noise. Small where refinement
+    /// it is large and what those rays hit differs much in brightness (a lamp reached
+    /// through clusters), the picture shows their noise. Small where refinement
     /// reached the surfaces (the built-in Cornell box), large where the link budget
-    /// stopped it early.
+    /// stopped it early. Weighted by light, so a bright sealed space (the inside of
+    /// nvpro's double-sided emissive lamp) counts with all of its light.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cluster_light_share: Option<f64>,
     /// Hierarchical: refinement stopped at the link budget (`max_links`) before the
