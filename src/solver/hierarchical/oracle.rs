@@ -525,13 +525,23 @@ impl View<'_> {
             threshold /= CONTACT_STRICTNESS;
         }
         // Ends whose bounding spheres overlap (a cluster and itself, or two that
-        // interpenetrate) have no bound at all: they always split, even before their
-        // source carries light, or the light between them would be lost until it did.
-        // (Judging a small receiving cluster's near pairs by the power they may carry let
-        // tiny detail keep sampled transfers, and a furnace lined with slivers then missed
-        // its closed form by 6 % at the slivers: `tests/hard_geometry.rs`.)
+        // interpenetrate) have no bound on their kernel: they split, even before their
+        // source carries light (the light it is expected to reflect counts, see
+        // `source_b`), or the light between them would be lost until it did. (Judging a
+        // small receiving cluster's near pairs by the power they may carry let tiny detail
+        // keep sampled transfers, and a furnace lined with slivers then missed its closed
+        // form by 6 % at the slivers: `tests/hard_geometry.rs`.) But such a pair kept
+        // carries nothing and so misses at most all a receiver could take of its source,
+        // ρ_r B_s (a whole hemisphere of it): where that is within the threshold it is
+        // kept. Sponza's first round split such pairs of dim surfaces for 7 % of its
+        // rays: 261 M in all against 242 M.
         let error = if l.transfer.spread().is_infinite() && rho > 0.0 {
-            f32::INFINITY
+            let most = rho * self.source_b(l.source);
+            if most > threshold {
+                f32::INFINITY
+            } else {
+                most
+            }
         } else {
             kernel + variation
         };

@@ -182,7 +182,8 @@ fn seed(receiver: NodeId, source: NodeId) -> u64 {
 /// gets no shadow rays and carries nothing (such links took 16 % of Sponza's shadow rays,
 /// and the solve 8 % longer). A link whose ends overlap carries its sampled transfer only
 /// when that is infinite (past the link budget, when the oracle keeps every link); the
-/// oracle splits it otherwise. `samples(shape, node)`: the shape of a cluster with its
+/// oracle splits it otherwise, or keeps it carrying nothing where its source sends at most
+/// the threshold's worth. `samples(shape, node)`: the shape of a cluster with its
 /// sample patches filled in (see [`Shape`]), asked for only where rays are cast.
 pub(super) fn evaluate(
     bvh: &Bvh,
@@ -554,8 +555,8 @@ fn with_cluster(
     };
     if overlap(r, s) {
         // No bound on the kernel: the oracle splits such a link (it then carries
-        // nothing), unless it keeps every link (past the link budget), when it carries
-        // the sampled transfer.
+        // nothing) or keeps it carrying nothing (a source too dim to matter), unless it
+        // keeps every link (past the link budget), when it carries the sampled transfer.
         return if keep_spread.is_infinite() {
             let (r, s) = samples();
             near_transfer(bvh, eps, &r, &s, seed)
