@@ -70,14 +70,15 @@ fn patch_rms(mesh: &Mesh, a: &[DVec3], b: &[DVec3]) -> f64 {
 
 #[test]
 fn furnace_at_rho_099_is_exact_with_clustering_on() {
-    // B = E / (1 − ρ) = 100 everywhere. The oracle holds each link's estimated error to
-    // ε · B̄ · (1 − ρ̄) and the sweeps' stopping is scaled by 1 − ρ̄ too (the error
-    // amplification of a closed scene), so after all bounces the error is bounded by about
-    // ε · B̄: 1 % at ε = 0.01. The box must do ten times better (0.1 %, the issue's
-    // figure): its faces are flat and its links mostly end on whole faces. The 320-facet
-    // sphere, whose every facet sees every other at a different angle, is held to the
-    // bound. Swept to 1e-4, so what the sweeps leave (about the tolerance, 1e-4 of B, as
-    // their stopping is scaled by 1 − ρ̄) is far below either.
+    // B = E / (1 − ρ) = 100 everywhere, to 0.1 % (the figure) for the box and the
+    // 320-facet sphere alike. The oracle's bound alone would allow more: it holds each
+    // link's estimated error to ε · B̄ · (1 − ρ̄), and after all bounces that is about
+    // ε · B̄, 1 % at ε = 0.01. But in a closed scene every leaf's links and its share
+    // along its rays (`sight`: one hemisphere less what its surface links hand it) sum to
+    // exactly one hemisphere, so a uniform B is reproduced whatever the links are; what
+    // is left is f32 rounding and the sweeps' stopping. Swept to 1e-4 (their stopping is
+    // scaled by 1 − ρ̄, so what they leave is about 1e-4 of B). Measured (2026-12-07):
+    // the sphere's worst element 1·10⁻⁵ off, with clustering on and off.
     let hierarchy = HierarchySettings {
         link_error: 0.01,
         ..Default::default()
@@ -89,7 +90,7 @@ fn furnace_at_rho_099_is_exact_with_clustering_on() {
         ),
         (
             builtin::furnace_sphere(DVec3::new(3.0, -2.0, 1.0), 0.5, 2, 0.99, 1.0),
-            1e-2,
+            1e-3,
         ),
     ] {
         let s = solve_to(&scene, hierarchy.clone(), 1e-4);
