@@ -36,6 +36,27 @@ fn double_sided(name: &str, rho: f32) -> Material {
     m
 }
 
+/// `objects` in `materials` under a slanting directional light of unit irradiance, meshed
+/// with the command line's default settings.
+fn prepared_under_a_slanting_sun(
+    name: &str,
+    objects: Vec<Object>,
+    materials: Vec<Material>,
+) -> (Prepared, SolveOptions) {
+    let scene = Scene {
+        name: name.into(),
+        objects,
+        materials,
+        lights: vec![Light::Directional {
+            direction: DVec3::new(0.3, -1.0, 0.2).normalize(),
+            irradiance: Vec3::ONE,
+        }],
+        ..Default::default()
+    };
+    let options = SolveOptions::default();
+    (Prepared::new(&scene, &options.mesh_settings()), options)
+}
+
 /// A slab 10 cm thick and, standing 5 cm into it, a closed box: both double-sided, of
 /// ρ = 0.5, under a slanting directional light. The floor inside the box is sealed from
 /// the light by the box's walls (which go on into the slab) and by the slab.
@@ -59,18 +80,11 @@ fn the_inside_of_a_white_box_standing_in_a_floor_stays_dark() {
         ..Default::default()
     };
     cuboid(&mut tall, [-0.5, -0.05, -0.5], [0.5, 2.0, 0.5], 0);
-    let scene = Scene {
-        name: "box in a floor".into(),
-        objects: vec![slab, tall],
-        materials: vec![double_sided("white", 0.5)],
-        lights: vec![Light::Directional {
-            direction: DVec3::new(0.3, -1.0, 0.2).normalize(),
-            irradiance: Vec3::ONE,
-        }],
-        ..Default::default()
-    };
-    let options = SolveOptions::default();
-    let prepared = Prepared::new(&scene, &options.mesh_settings());
+    let (prepared, options) = prepared_under_a_slanting_sun(
+        "box in a floor",
+        vec![slab, tall],
+        vec![double_sided("white", 0.5)],
+    );
     let mut solver = prepared.solver(options.solver_settings()).unwrap();
     solver.run(None, radiosity::cancel::never()).unwrap();
     let (mesh, b) = (solver.mesh(), solver.radiosity());
@@ -127,21 +141,14 @@ fn the_inside_of_a_floating_sealed_box_stays_dark() {
         ..Default::default()
     };
     cuboid(&mut sealed, [-0.5, 0.3, -0.5], [0.5, 1.3, 0.5], 1);
-    let scene = Scene {
-        name: "sealed box".into(),
-        objects: vec![floor, sealed],
-        materials: vec![
+    let (prepared, options) = prepared_under_a_slanting_sun(
+        "sealed box",
+        vec![floor, sealed],
+        vec![
             Material::diffuse("floor", Vec3::splat(0.8)),
             double_sided("box", 0.8),
         ],
-        lights: vec![Light::Directional {
-            direction: DVec3::new(0.3, -1.0, 0.2).normalize(),
-            irradiance: Vec3::ONE,
-        }],
-        ..Default::default()
-    };
-    let options = SolveOptions::default();
-    let prepared = Prepared::new(&scene, &options.mesh_settings());
+    );
     let inside = |mesh: &Mesh, e: usize| {
         let patch = &mesh.patches[mesh.elements[e].patch as usize];
         patch.object == 1 && patch.back
