@@ -470,3 +470,147 @@ fn vertex_values_keep_to_the_colours_around_them() {
         "a vertex's colour {worst} beyond those around it"
     );
 }
+
+/// A T-vertex at the middle of a short edge whose light steps along it, at the top of a
+/// long sliver, as at the foot of Sponza's cornice (where a fan's black apex sits 1 cm from
+/// its lit neighbour, and a 0.6 m sliver hangs from between them). The T-vertex takes the
+/// edge's cubic, and with it the edge's steep slope; the sliver's long edges leave the
+/// short one at an angle, so with the slope across the edge interpolated from the ends the
+/// slope along it ran down the sliver, below 0 (measured: −0.014 here; −0.25 W/m² on
+/// Sponza, a black line there). The element values are within [0, 1], and so are the
+/// vertex values (checked: Gouraud stays within it), so a cubic that leaves [0, 1] swings
+/// beyond the light around it; allowed: f32 rounding. Hand-built: the short edge A–E
+/// under a coarse element K, the sliver patch A–P–E below it cut into four (its corner C
+/// at the middle of A–E hangs on K's edge), dark elements left of A and lit ones right of
+/// E.
+#[test]
+fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
+    use radiosity::mesh::{Element, Hanging};
+    let p = |x: f32, z: f32| Vec3::new(x, 0.0, z);
+    let positions = vec![
+        p(0.0, 0.0),       // 0 A
+        p(0.01, 0.0),      // 1 E
+        p(0.005, 0.0),     // 2 C, on A–E
+        p(-0.356, -1.118), // 3 P
+        p(-0.178, -0.559), // 4 middle of A–P
+        p(-0.173, -0.559), // 5 middle of P–E
+        p(0.005, 0.5),     // 6 K's apex
+        p(-0.3, 0.0),      // 7 left
+        p(0.31, 0.0),      // 8 right
+    ];
+    let triangles: [([u32; 3], f32); 9] = [
+        ([0, 1, 6], 0.5), // K, the coarse element over A–E
+        ([7, 0, 6], 0.0), // dark, left of A
+        ([7, 4, 0], 0.0),
+        ([1, 8, 6], 1.0), // lit, right of E
+        ([1, 5, 8], 1.0),
+        ([0, 4, 2], 0.3), // the sliver patch A–P–E, cut into four
+        ([4, 3, 5], 0.5),
+        ([2, 5, 1], 0.6),
+        ([4, 5, 2], 0.5),
+    ];
+    let mut elements = Vec::new();
+    let mut values = Vec::new();
+    for (corners, value) in triangles {
+        let verts = corners.map(|c| positions[c as usize]);
+        let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+        // All wound the same way (the test's own check on its data).
+        assert!(cross.y < 0.0, "{corners:?} is wound the other way");
+        elements.push(Element {
+            verts,
+            normal: cross.normalize(),
+            area: 0.5 * cross.length(),
+            patch: 0,
+            level: 0,
+            corners,
+        });
+        values.push(Vec3::splat(value));
+    }
+    let display = DisplayMesh {
+        normals: vec![elements[0].normal; positions.len()],
+        positions,
+        hanging: vec![Hanging {
+            vertex: 2,
+            edge: [0, 1],
+            t: 0.5,
+        }],
+        shadow_sides: None,
+    };
+    let light = |mode: Reconstruction| {
+        let r = Reconstructor::new(mode, &display, &elements, &values);
+        let (mut least, mut most) = (f32::INFINITY, f32::NEG_INFINITY);
+        for e in 5..9u32 {
+            for u in 0..=12 {
+                for v in 0..=12 - u {
+                    let bary = [u as f32 / 12.0, v as f32 / 12.0, (12 - u - v) as f32 / 12.0];
+                    let x = r.at(&elements, &values, e, bary).x;
+                    (least, most) = (least.min(x), most.max(x));
+                }
+            }
+        }
+        (least, most)
+    };
+    let gouraud = light(Reconstruction::Gouraud);
+    let hermite = light(Reconstruction::Hermite);
+    println!("the sliver's light: Gouraud {gouraud:?}, Hermite {hermite:?}");
+    let within = |(least, most): (f32, f32)| least >= -1e-5 && most <= 1.0 + 1e-5;
+    assert!(
+        within(gouraud),
+        "the vertex values leave [0, 1]: {gouraud:?}"
+    );
+    assert!(
+        within(hermite),
+        "the sliver's light goes from {} to {}, beyond [0, 1]",
+        hermite.0,
+        hermite.1
+    );
+}
+
+/// A sliver of Sponza's wall under the cornice (0.6 m long, 5 mm across its short edge),
+/// with the corner values and slopes the reconstruction gave it there (one channel; the
+/// wall in the mesh frame, its normal along −x). Its corners' light is 0.016 to 0.043
+/// W/m², and light is never negative, but its Clough–Tocher element went to −0.017
+/// inside: seen from the short edge the centroid lies mostly along it (γ ≈ 11), so the
+/// step between the short edge's ends, which the corners' slopes do not see, was
+/// extrapolated into the element. The inner control points are held within the edges'
+/// (no new extremum inside), and the whole element with them.
+#[test]
+fn a_sliver_s_cubic_makes_no_extremum_inside() {
+    use radiosity::mesh::{Element, Hermite};
+    let p = |y: f32, z: f32| Vec3::new(9.2987, y, z);
+    let verts = [
+        p(-2.1441948, -0.1637601),
+        p(-2.1441948, -0.15853384),
+        p(-1.5850648, 0.019391172),
+    ];
+    let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+    let elements = [Element {
+        verts,
+        normal: cross.normalize(),
+        area: 0.5 * cross.length(),
+        patch: 0,
+        level: 0,
+        corners: [0, 1, 2],
+    }];
+    let slope = |y: f32, z: f32| [Vec3::new(0.0, y, z); 3];
+    let h = Hermite {
+        values: [0.043269485f32, 0.029726284, 0.016326763]
+            .map(Vec3::splat)
+            .to_vec(),
+        gradients: vec![
+            slope(0.016372088, -0.12591152),
+            slope(0.0018906817, 0.23768489),
+            slope(-1.518141, 4.5060487),
+        ],
+    };
+    let c = DisplayMesh::bezier(&elements, &h, 0);
+    let mut least = f32::INFINITY;
+    for u in 0..=30 {
+        for v in 0..=30 - u {
+            let bary = [u as f32 / 30.0, v as f32 / 30.0, (30 - u - v) as f32 / 30.0];
+            least = least.min(eval_bezier(&c, bary).x);
+        }
+    }
+    println!("least inside the sliver: {least}");
+    assert!(least >= 0.0, "the sliver's light goes down to {least}");
+}

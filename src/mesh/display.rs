@@ -279,13 +279,16 @@ struct Fit {
 /// element's plane) is made linear along the edge, between the end gradients' values, so
 /// both elements sharing an edge have the same cross-edge slope: C¹ across edges where
 /// they share their vertices (a smooth surface), not only at vertices. The inner points
-/// follow from C¹ between the three sub-triangles. Linear light of one colour is
-/// reproduced exactly. The vertex gradient is the luminance's least-squares plane through
+/// follow from C¹ between the three sub-triangles, the three of them next to the edges
+/// held within the edges' control points (no new extremum inside an element; a sliver's
+/// would otherwise swing far, see `bezier`). Linear light of one colour is reproduced
+/// exactly. The vertex gradient is the luminance's least-squares plane through
 /// the centroids' values of the elements around it, weighted by area, times the vertex's
 /// chromaticity (see `DisplayMesh::fit`). T-vertices take the
 /// coarse edge's cubic (value and slope along the edge at their parameter on it) and its
-/// ends' cross-edge slopes interpolated linearly, so refinement leaves neither a crack nor
-/// a crease. Across a contact line vertices are not shared, and the surface jumps.
+/// ends' cross-edge slopes interpolated linearly, so refinement leaves no crack, and no
+/// crease except where that cross-edge slope is held to the limiter's bounds (see
+/// `hermite_from`). Across a contact line vertices are not shared, and the surface jumps.
 #[derive(Clone, Debug, Default)]
 pub struct Hermite {
     pub values: Vec<Vec3>,
@@ -365,6 +368,40 @@ pub fn eval_bezier(c: &Bezier, bary: [f32; 3]) -> Vec3 {
         + c[16] * (3.0 * b2 * b4 * b4)
         + c[17] * (3.0 * b3 * b4 * b4)
         + c[18] * (b4 * b4 * b4)
+}
+
+/// The slope across a T-vertex's coarse edge, per channel, that keeps its cubics within
+/// `bounds` (each: the value without it, its rate of change with the slope, least and
+/// greatest value): `preferred` where it meets every bound, else the nearest that does;
+/// where they conflict, whichever of `preferred` and the two conflicting bounds' slopes
+/// oversteps the bounds least.
+fn slope_within(bounds: &[(Vec3, f32, Vec3, Vec3)], preferred: Vec3) -> Vec3 {
+    Vec3::from_array(std::array::from_fn(|ch| {
+        let (mut least, mut most) = (f32::NEG_INFINITY, f32::INFINITY);
+        for &(base, rate, lo, hi) in bounds {
+            if rate != 0.0 {
+                let (x, y) = ((lo[ch] - base[ch]) / rate, (hi[ch] - base[ch]) / rate);
+                least = least.max(x.min(y));
+                most = most.min(x.max(y));
+            }
+        }
+        if least <= most {
+            return preferred[ch].clamp(least, most);
+        }
+        let overstep = |n: f32| {
+            bounds.iter().fold(0.0f32, |worst, &(base, rate, lo, hi)| {
+                let value = base[ch] + rate * n;
+                worst.max(lo[ch] - value).max(value - hi[ch])
+            })
+        };
+        [least, most].into_iter().fold(preferred[ch], |best, n| {
+            if overstep(n) < overstep(best) {
+                n
+            } else {
+                best
+            }
+        })
+    }))
 }
 
 fn along(g: &[Vec3; 3], d: Vec3) -> Vec3 {
@@ -558,43 +595,62 @@ impl DisplayMesh {
         grads: &mut [[Vec3; 3]],
     ) {
         let mut phi = vec![Vec3::ONE; vertex.len()];
-        // The largest φ that keeps a + φ·δ within [lo, hi], per channel.
-        let limit = |phi: &mut Vec3, a: Vec3, delta: Vec3, lo: Vec3, hi: Vec3| {
-            for ch in 0..3 {
-                let room = if delta[ch] > 0.0 {
-                    hi[ch] - a[ch]
-                } else {
-                    lo[ch] - a[ch]
-                };
-                if delta[ch] != 0.0 {
-                    phi[ch] = phi[ch].min((room / delta[ch]).clamp(0.0, 1.0));
-                }
-            }
-        };
         for (i, e) in elements.iter().enumerate() {
-            let c = e.centroid();
             for (n, &k) in e.corners.iter().enumerate() {
                 let k = k as usize;
                 if !self.counts(i, k) {
                     continue;
                 }
-                let a = vertex[k];
-                let (lo, hi) = (range[k].0.min(a), range[k].1.max(a));
-                let slope = |d: Vec3| along(&grads[k], d);
-                limit(&mut phi[k], a, slope(c - self.positions[k]), lo, hi);
-                // The cubic's inner points along the element's two edges from the vertex,
-                // a third of the way: within that range and the far end's value.
-                for j in [e.corners[(n + 1) % 3], e.corners[(n + 2) % 3]] {
-                    let (j, d) = (j as usize, self.positions[j as usize] - self.positions[k]);
-                    let far = vertex[j];
-                    limit(&mut phi[k], a, slope(d / 3.0), lo.min(far), hi.max(far));
-                }
+                let (a, phi) = (vertex[k], &mut phi[k]);
+                // The largest φ that keeps a + φ·δ within [lo, hi], per channel.
+                self.limits_in(e, n, vertex, range[k], |d, lo, hi| {
+                    let delta = along(&grads[k], d);
+                    for ch in 0..3 {
+                        let room = if delta[ch] > 0.0 {
+                            hi[ch] - a[ch]
+                        } else {
+                            lo[ch] - a[ch]
+                        };
+                        if delta[ch] != 0.0 {
+                            phi[ch] = phi[ch].min((room / delta[ch]).clamp(0.0, 1.0));
+                        }
+                    }
+                });
             }
         }
         for (g, f) in grads.iter_mut().zip(phi) {
             for ch in 0..3 {
                 g[ch] *= f[ch];
             }
+        }
+    }
+
+    /// What the limiter holds the cubic of element `e` from its corner `n` (vertex k) to:
+    /// calls `bound(d, lo, hi)` for each offset d from the vertex at which the plane of
+    /// the vertex's value and gradient must stay within [lo, hi]: the element's centroid,
+    /// within `range` (the values of the elements around the vertex) and the vertex's
+    /// value; and the third points of its two edges from the vertex (where the edge's
+    /// cubic has its inner control points), within that and the far end's value.
+    fn limits_in(
+        &self,
+        e: &Element,
+        n: usize,
+        vertex: &[Vec3],
+        range: (Vec3, Vec3),
+        mut bound: impl FnMut(Vec3, Vec3, Vec3),
+    ) {
+        let k = e.corners[n] as usize;
+        let a = vertex[k];
+        let (lo, hi) = (range.0.min(a), range.1.max(a));
+        bound(e.centroid() - self.positions[k], lo, hi);
+        for j in [e.corners[(n + 1) % 3], e.corners[(n + 2) % 3]] {
+            let j = j as usize;
+            let far = vertex[j];
+            bound(
+                (self.positions[j] - self.positions[k]) / 3.0,
+                lo.min(far),
+                hi.max(far),
+            );
         }
     }
 
@@ -618,10 +674,33 @@ impl DisplayMesh {
             range,
         } = fit;
         self.limit_gradients(elements, &vals, &range, &mut grads);
+        // Each T-vertex's elements (the vertex, the element, its corner there), for the
+        // limiter below.
+        let mut is_hanging = vec![false; self.positions.len()];
+        for h in &self.hanging {
+            is_hanging[h.vertex as usize] = true;
+        }
+        let mut around: Vec<(u32, u32, u8)> = Vec::new();
+        for (i, e) in elements.iter().enumerate() {
+            for (n, &k) in e.corners.iter().enumerate() {
+                if is_hanging[k as usize] && self.counts(i, k as usize) {
+                    around.push((k, i as u32, n as u8));
+                }
+            }
+        }
+        around.sort_unstable();
+        let mut bounds: Vec<(Vec3, f32, Vec3, Vec3)> = Vec::new();
         // T-vertices: the coarse edge's cubic at their parameter t on it (value, and slope
         // along it; the cubic Hermite basis), and across the edge the ends' slopes
         // interpolated linearly, since the coarse element's cross-edge slope is linear
-        // along the edge.
+        // along the edge. The value and the slope along the edge must stay the coarse
+        // edge's (the surface is continuous along it), but the slope across is free: it
+        // is held to the limiter's bounds in the T-vertex's own elements. Their other
+        // edges leave the coarse edge at an angle, so the slope along it enters their
+        // cubics too: on Sponza, 4.5 W/m² per metre along a 1 cm edge under the cornice
+        // (between a fan's black apex and its lit neighbour) sent a 0.6 m sliver's cubic
+        // from that edge to −0.25 W/m², between values of 0.016 and 0.043: a black line
+        // along the sliver. A slope across that meets the bounds cancels it there.
         self.resolve_hanging(|h| {
             let (v, [a, b], t) = (h.vertex as usize, h.edge.map(|i| i as usize), h.t);
             let d = self.positions[b] - self.positions[a];
@@ -639,9 +718,38 @@ impl DisplayMesh {
             let across = self.normals[v].cross(d).normalize_or_zero();
             let change = (value - vals[v]).abs().max_element();
             vals[v] = value;
+            let interpolated = Vec3::from_array(std::array::from_fn(|ch| {
+                grads[a][ch].dot(across) * (1.0 - t) + grads[b][ch].dot(across) * t
+            }));
+            let on_edge = d * (1.0 / len2);
+            // T-vertices on an edge with a T-vertex at an end are set again and again, until
+            // they settle (`resolve_hanging`): they keep the interpolated slope, which
+            // settles. Held to bounds, slopes fed back through each other can grow without
+            // end.
+            let mut across_slope = interpolated;
+            if !h.edge.iter().any(|&e| is_hanging[e as usize]) {
+                // Each bound: the value at d without the slope across, how fast the slope
+                // across changes it, and its least and greatest value.
+                bounds.clear();
+                let start = around.partition_point(|&(k, _, _)| (k as usize) < v);
+                for &(_, i, n) in around[start..]
+                    .iter()
+                    .take_while(|&&(k, _, _)| k as usize == v)
+                {
+                    let e = &elements[i as usize];
+                    self.limits_in(e, n as usize, &vals, range[v], |d, lo, hi| {
+                        // Along the coarse edge (within 11.5° of it) the slope across
+                        // cannot help without growing huge: not a bound on it.
+                        let rate = across.dot(d);
+                        if rate.abs() >= 0.2 * d.length() {
+                            bounds.push((value + slope * on_edge.dot(d), rate, lo, hi));
+                        }
+                    });
+                }
+                across_slope = slope_within(&bounds, interpolated);
+            }
             for ch in 0..3 {
-                let n = grads[a][ch].dot(across) * (1.0 - t) + grads[b][ch].dot(across) * t;
-                grads[v][ch] = d * (slope[ch] / len2) + across * n;
+                grads[v][ch] = d * (slope[ch] / len2) + across * across_slope[ch];
             }
             (change, value.abs().max_element())
         });
@@ -688,6 +796,22 @@ impl DisplayMesh {
         let c1101 = (((c2100 - c1200) * 3.0 - c3000 + c0300) * q3
             + (c2100 * 2.0 - c3000 - c1200 + c2001 + c0201))
             * 0.5;
+        // No new extremum inside: those three within the edges' control points, and with
+        // them every point inside (a Bézier triangle lies within its control points). In
+        // a sliver the centroid's direction from a short edge runs mostly along it (γ up
+        // to tens), so corner data that disagree along the short edge (values 5 mm apart
+        // fitted from different fans, slopes that do not see the step) swing the inside
+        // far past the light around it: on Sponza to −0.12 W/m² between corners of 0.016
+        // to 0.043. Clamped, the element keeps C⁰ with its neighbours (the edges are
+        // untouched) and loses C¹ across an edge only where a clamp acts.
+        let (lo, hi) = [c2100, c2010, c1200, c0210, c1020, c0120, c0300, c0030]
+            .iter()
+            .fold((c3000, c3000), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+        let (c0111, c1011, c1101) = (
+            c0111.clamp(lo, hi),
+            c1011.clamp(lo, hi),
+            c1101.clamp(lo, hi),
+        );
         // Inner points: C¹ between the three sub-triangles.
         let c1002 = (c1101 + c1011 + c2001) / 3.0;
         let c0102 = (c1101 + c0111 + c0201) / 3.0;

@@ -220,12 +220,20 @@ fn hermite(e: u32, bary: vec3<f32>) -> vec3<f32> {
     let q1 = gamma(e24, e23);
     let q2 = gamma(e34, e31);
     let q3 = gamma(e14, e12);
-    let c0111 = (((c0210 - c0120) * 3.0 - c0300 + c0030) * q1
+    let c0111_free = (((c0210 - c0120) * 3.0 - c0300 + c0030) * q1
         + (c0210 * 2.0 - c0300 - c0120 + c0021 + c0201)) * 0.5;
-    let c1011 = (((c1020 - c2010) * 3.0 - c0030 + c3000) * q2
+    let c1011_free = (((c1020 - c2010) * 3.0 - c0030 + c3000) * q2
         + (c1020 * 2.0 - c0030 - c2010 + c2001 + c0021)) * 0.5;
-    let c1101 = (((c2100 - c1200) * 3.0 - c3000 + c0300) * q3
+    let c1101_free = (((c2100 - c1200) * 3.0 - c3000 + c0300) * q3
         + (c2100 * 2.0 - c3000 - c1200 + c2001 + c0201)) * 0.5;
+    // No new extremum inside: those three within the edges' control points.
+    let lo = min(min(min(c3000, c0300), min(c0030, c2100)),
+        min(min(c2010, c1200), min(min(c0210, c1020), c0120)));
+    let hi = max(max(max(c3000, c0300), max(c0030, c2100)),
+        max(max(c2010, c1200), max(max(c0210, c1020), c0120)));
+    let c0111 = clamp(c0111_free, lo, hi);
+    let c1011 = clamp(c1011_free, lo, hi);
+    let c1101 = clamp(c1101_free, lo, hi);
     // Inner points: C¹ between the three sub-triangles.
     let c1002 = (c1101 + c1011 + c2001) / 3.0;
     let c0102 = (c1101 + c0111 + c0201) / 3.0;
