@@ -512,18 +512,10 @@ fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
     let mut elements = Vec::new();
     let mut values = Vec::new();
     for (corners, value) in triangles {
-        let verts = corners.map(|c| positions[c as usize]);
-        let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+        let element = Element::over(&positions, corners);
         // All wound the same way (the test's own check on its data).
-        assert!(cross.y < 0.0, "{corners:?} is wound the other way");
-        elements.push(Element {
-            verts,
-            normal: cross.normalize(),
-            area: 0.5 * cross.length(),
-            patch: 0,
-            level: 0,
-            corners,
-        });
+        assert!(element.normal.y < 0.0, "{corners:?} is wound the other way");
+        elements.push(element);
         values.push(Vec3::splat(value));
     }
     let display = DisplayMesh {
@@ -578,20 +570,12 @@ fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
 fn a_sliver_s_cubic_makes_no_extremum_inside() {
     use radiosity::mesh::{Element, Hermite};
     let p = |y: f32, z: f32| Vec3::new(9.2987, y, z);
-    let verts = [
+    let corners = [
         p(-2.1441948, -0.1637601),
         p(-2.1441948, -0.15853384),
         p(-1.5850648, 0.019391172),
     ];
-    let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
-    let elements = [Element {
-        verts,
-        normal: cross.normalize(),
-        area: 0.5 * cross.length(),
-        patch: 0,
-        level: 0,
-        corners: [0, 1, 2],
-    }];
+    let elements = [Element::over(&corners, [0, 1, 2])];
     let slope = |y: f32, z: f32| [Vec3::new(0.0, y, z); 3];
     let h = Hermite {
         values: [0.043269485f32, 0.029726284, 0.016326763]

@@ -241,19 +241,6 @@ mod tests {
     use super::*;
     use crate::geometry::sampling::{hash, unit};
 
-    fn element(positions: &[Vec3], corners: [u32; 3]) -> Element {
-        let verts = corners.map(|c| positions[c as usize]);
-        let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
-        Element {
-            verts,
-            normal: cross.normalize(),
-            area: 0.5 * cross.length(),
-            patch: 0,
-            level: 0,
-            corners,
-        }
-    }
-
     /// The unit square in the plane y = 0, cut along its diagonal from (0, 0) to (1, 1):
     /// one triangle on one side, two on the other meeting the diagonal at `(t, t)`.
     fn square(t: f32) -> (Vec<Vec3>, Vec<Element>) {
@@ -265,7 +252,7 @@ mod tests {
             Vec3::new(t, 0.0, t),
         ];
         let elements = [[0, 2, 1], [0, 3, 4], [4, 3, 2]]
-            .map(|c| element(&positions, c))
+            .map(|c| Element::over(&positions, c))
             .to_vec();
         (positions, elements)
     }
@@ -291,8 +278,8 @@ mod tests {
         assert!(find(&elements, &positions, tol, |_, _| true).is_empty());
         let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X + Vec3::Z];
         let elements = vec![
-            element(&positions, [0, 2, 1]),
-            element(&positions, [1, 2, 3]),
+            Element::over(&positions, [0, 2, 1]),
+            Element::over(&positions, [1, 2, 3]),
         ];
         assert!(find(&elements, &positions, tol, |_, _| true).is_empty());
     }

@@ -157,6 +157,21 @@ pub struct Element {
 }
 
 impl Element {
+    /// The element over display vertices `corners` at `positions`, of patch 0 at the top
+    /// of its quadtree: for meshes built by hand (tests).
+    pub fn over(positions: &[Vec3], corners: [u32; 3]) -> Element {
+        let verts = corners.map(|c| positions[c as usize]);
+        let cross = (verts[1] - verts[0]).cross(verts[2] - verts[0]);
+        Element {
+            verts,
+            normal: cross.normalize(),
+            area: 0.5 * cross.length(),
+            patch: 0,
+            level: 0,
+            corners,
+        }
+    }
+
     /// Centroid in the mesh frame.
     pub fn centroid(&self) -> Vec3 {
         (self.verts[0] + self.verts[1] + self.verts[2]) / 3.0
