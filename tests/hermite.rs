@@ -7,7 +7,8 @@
 use glam::{DVec3, Vec3};
 use radiosity::analytic::penumbra_errors;
 use radiosity::mesh::{
-    AdaptiveSettings, DisplayMesh, Mesh, MeshSettings, Reconstruction, Reconstructor, eval_bezier,
+    AdaptiveSettings, DisplayMesh, Element, Mesh, MeshSettings, Reconstruction, Reconstructor,
+    eval_bezier,
 };
 use radiosity::pipeline::Prepared;
 use radiosity::pipeline::probe_values;
@@ -243,16 +244,22 @@ fn hermite_is_c1_across_edges() {
     );
 }
 
-/// The farthest the reconstruction of `b` goes beyond [0, 1], sampled at 28 barycentric
-/// points of every element.
-fn swing_beyond_unit_range(mode: Reconstruction, mesh: &Mesh, b: &[Vec3]) -> f32 {
-    let r = Reconstructor::new(mode, &mesh.display, &mesh.elements, b);
+/// The farthest the reconstruction of `b` goes beyond [0, 1] over `elements`, sampled at
+/// the (n + 1)(n + 2)/2 barycentric points of a triangle cut n times along each edge.
+fn swing_beyond_unit_range(
+    mode: Reconstruction,
+    display: &DisplayMesh,
+    elements: &[Element],
+    b: &[Vec3],
+    n: u32,
+) -> f32 {
+    let r = Reconstructor::new(mode, display, elements, b);
     let mut worst = 0.0f32;
-    for i in 0..mesh.elements.len() as u32 {
-        for u in 0..=6 {
-            for v in 0..=6 - u {
-                let bary = [u as f32 / 6.0, v as f32 / 6.0, (6 - u - v) as f32 / 6.0];
-                let x = r.at(&mesh.elements, b, i, bary).x;
+    for i in 0..elements.len() as u32 {
+        for u in 0..=n {
+            for v in 0..=n - u {
+                let bary = [u, v, n - u - v].map(|k| k as f32 / n as f32);
+                let x = r.at(elements, b, i, bary).x;
                 worst = worst.max(x - 1.0).max(-x);
             }
         }
@@ -280,8 +287,10 @@ fn hermite_stays_within_the_light_around_it_across_a_step() {
             Vec3::splat(if p.x + 0.37 * p.z < 0.13 { 1.0 } else { 0.0 })
         })
         .collect();
-    let gouraud = swing_beyond_unit_range(Reconstruction::Gouraud, mesh, &b);
-    let hermite = swing_beyond_unit_range(Reconstruction::Hermite, mesh, &b);
+    // 28 points per element.
+    let swing = |mode| swing_beyond_unit_range(mode, &mesh.display, &mesh.elements, &b, 6);
+    let gouraud = swing(Reconstruction::Gouraud);
+    let hermite = swing(Reconstruction::Hermite);
     println!("swing beyond [0, 1]: Gouraud {gouraud:.4}, Hermite {hermite:.4}");
     // f32 rounding of the least-squares fits: 4e-6 measured.
     assert!(
@@ -485,7 +494,7 @@ fn vertex_values_keep_to_the_colours_around_them() {
 /// E.
 #[test]
 fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
-    use radiosity::mesh::{Element, Hanging};
+    use radiosity::mesh::Hanging;
     let p = |x: f32, z: f32| Vec3::new(x, 0.0, z);
     let positions = vec![
         p(0.0, 0.0),       // 0 A
@@ -528,33 +537,18 @@ fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
         }],
         shadow_sides: None,
     };
-    let light = |mode: Reconstruction| {
-        let r = Reconstructor::new(mode, &display, &elements, &values);
-        let (mut least, mut most) = (f32::INFINITY, f32::NEG_INFINITY);
-        for e in 5..9u32 {
-            for u in 0..=12 {
-                for v in 0..=12 - u {
-                    let bary = [u as f32 / 12.0, v as f32 / 12.0, (12 - u - v) as f32 / 12.0];
-                    let x = r.at(&elements, &values, e, bary).x;
-                    (least, most) = (least.min(x), most.max(x));
-                }
-            }
-        }
-        (least, most)
-    };
-    let gouraud = light(Reconstruction::Gouraud);
-    let hermite = light(Reconstruction::Hermite);
-    println!("the sliver's light: Gouraud {gouraud:?}, Hermite {hermite:?}");
-    let within = |(least, most): (f32, f32)| least >= -1e-5 && most <= 1.0 + 1e-5;
+    // 91 points per element, over all nine.
+    let swing = |mode| swing_beyond_unit_range(mode, &display, &elements, &values, 12);
+    let gouraud = swing(Reconstruction::Gouraud);
+    let hermite = swing(Reconstruction::Hermite);
+    println!("swing beyond [0, 1]: Gouraud {gouraud:.2e}, Hermite {hermite:.2e}");
     assert!(
-        within(gouraud),
-        "the vertex values leave [0, 1]: {gouraud:?}"
+        gouraud <= 1e-5,
+        "the vertex values leave [0, 1] by {gouraud}"
     );
     assert!(
-        within(hermite),
-        "the sliver's light goes from {} to {}, beyond [0, 1]",
-        hermite.0,
-        hermite.1
+        hermite <= 1e-5,
+        "the sliver's light goes {hermite} beyond [0, 1]"
     );
 }
 
@@ -568,7 +562,7 @@ fn a_sliver_below_a_t_vertex_keeps_within_the_light_around_it() {
 /// (no new extremum inside), and the whole element with them.
 #[test]
 fn a_sliver_s_cubic_makes_no_extremum_inside() {
-    use radiosity::mesh::{Element, Hermite};
+    use radiosity::mesh::Hermite;
     let p = |y: f32, z: f32| Vec3::new(9.2987, y, z);
     let corners = [
         p(-2.1441948, -0.1637601),

@@ -197,6 +197,15 @@ impl DisplayMesh {
         values
     }
 
+    /// Per display vertex, whether it is a T-vertex.
+    fn hanging_flags(&self) -> Vec<bool> {
+        let mut is_hanging = vec![false; self.positions.len()];
+        for h in &self.hanging {
+            is_hanging[h.vertex as usize] = true;
+        }
+        is_hanging
+    }
+
     /// Sets every T-vertex from its edge with `set(hanging)`, which returns how much the
     /// vertex changed and its size; passes in coarse-edge order until no vertex changes by
     /// more than 10⁻⁶ of the largest (at most 64). One pass is exact unless T-vertices
@@ -208,10 +217,7 @@ impl DisplayMesh {
     /// after the first go only through the T-vertices with a T-vertex at an end of their
     /// edge: the others are set for good by the first.
     fn resolve_hanging(&self, mut set: impl FnMut(&Hanging) -> (f32, f32)) {
-        let mut is_hanging = vec![false; self.positions.len()];
-        for h in &self.hanging {
-            is_hanging[h.vertex as usize] = true;
-        }
+        let is_hanging = self.hanging_flags();
         let depends = |h: &&Hanging| h.edge.iter().any(|&v| is_hanging[v as usize]);
         let dependent: Vec<&Hanging> = self.hanging.iter().filter(depends).collect();
         // The largest size among the T-vertices set for good.
@@ -676,10 +682,7 @@ impl DisplayMesh {
         self.limit_gradients(elements, &vals, &range, &mut grads);
         // Each T-vertex's elements (the vertex, the element, its corner there), for the
         // limiter below.
-        let mut is_hanging = vec![false; self.positions.len()];
-        for h in &self.hanging {
-            is_hanging[h.vertex as usize] = true;
-        }
+        let is_hanging = self.hanging_flags();
         let mut around: Vec<(u32, u32, u8)> = Vec::new();
         for (i, e) in elements.iter().enumerate() {
             for (n, &k) in e.corners.iter().enumerate() {
@@ -749,7 +752,7 @@ impl DisplayMesh {
                 across_slope = slope_within(&bounds, interpolated);
             }
             for ch in 0..3 {
-                grads[v][ch] = d * (slope[ch] / len2) + across * across_slope[ch];
+                grads[v][ch] = on_edge * slope[ch] + across * across_slope[ch];
             }
             (change, value.abs().max_element())
         });
