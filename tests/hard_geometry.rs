@@ -27,9 +27,10 @@ use radiosity::solver::Method;
 ///
 /// - progressive: 2 × `tolerance` (see the module doc);
 /// - hierarchical: the oracle holds every link's estimated error, and the summed misfit of
-///   each receiver's links near its corners, to ε · B̄ · (1 − ρ̄), and the sweeps stop when
-///   what is left is about `tolerance` · B̄; in a closed scene an error δ per bounce grows
-///   to δ / (1 − ρ̄), so the result is within about ε · B̄ (+ `tolerance`) of the truth.
+///   each receiver's links near its corners, to ε · Ē' (Ē' the mean light the surfaces
+///   emit or first reflect), and the sweeps stop when what is left is about
+///   `tolerance` · B̄; an error δ per transfer grows over the bounces by the scene's gain
+///   B̄ / Ē', so the result is within about ε · B̄ (+ `tolerance`) of the truth.
 fn methods() -> [(Method, f64); 2] {
     let o = SolveOptions::default();
     [

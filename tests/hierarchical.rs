@@ -72,8 +72,8 @@ fn patch_rms(mesh: &Mesh, a: &[DVec3], b: &[DVec3]) -> f64 {
 fn furnace_at_rho_099_is_exact_with_clustering_on() {
     // B = E / (1 − ρ) = 100 everywhere, to 0.1 % (the figure) for the box and the
     // 320-facet sphere alike. The oracle's bound alone would allow more: it holds each
-    // link's estimated error to ε · B̄ · (1 − ρ̄), and after all bounces that is about
-    // ε · B̄, 1 % at ε = 0.01. But in a closed scene every leaf's links and its share
+    // link's estimated error to ε · Ē' (the mean of E'), and after all bounces that is
+    // about ε · Ē' / (1 − ρ) = ε · B̄, 1 % at ε = 0.01. But in a closed scene every leaf's links and its share
     // along its rays (`sight`: one hemisphere less what its surface links hand it) sum to
     // exactly one hemisphere, so a uniform B is reproduced whatever the links are; what
     // is left is f32 rounding and the sweeps' stopping. Swept to 1e-4 (their stopping is
@@ -192,8 +192,9 @@ fn the_links_deliver_what_a_brute_force_gather_of_the_solution_finds() {
     // light), so its part is taken by next-event estimation instead: each point adds, for
     // each emitting patch, its mean B times A cos θ cos θ' / (π r²) times the transmittance
     // towards one uniform point of it (unbiased), and rays that hit an emitter add nothing. Summed over each surface (area-weighted), the two must agree
-    // to 1 %: the oracle holds each link to ε (1 − ρ̄) of the mean radiosity, 0.7 % at
-    // ε = 0.02, and the receiver's links err both ways. Taking a source's mean radiosity
+    // to 1 %: the oracle holds each link to ε of the mean E' (what the surfaces emit or
+    // first reflect), about ε / 2 of the mean radiosity here (the box's gain is 2), 1 %
+    // at ε = 0.02, and the receiver's links err both ways. Taking a source's mean radiosity
     // instead of its linear fit where the receiver sees it best made the ceiling's links
     // 1.4 % short (all of them erred the same way); area-weighted visibility made the
     // blocks' faces 4 % short. The rays' noise is about 0.1 % per surface (256 per element
@@ -299,7 +300,7 @@ fn the_links_deliver_what_a_brute_force_gather_of_the_solution_finds() {
 
 #[test]
 fn clustering_on_and_off_agree_within_the_oracle_bound() {
-    // Both solves refine until no link's estimated error exceeds ε · B̄ · (1 − ρ̄); they
+    // Both solves refine until no link's estimated error exceeds ε · Ē'; they
     // differ by what each approximation leaves, a few ε of the mean. Tolerance: 3 ε.
     let scene = builtin::cornell_box();
     let eps = 0.02;
@@ -346,8 +347,9 @@ fn an_edited_solve_matches_a_fresh_solve_of_the_edited_scene() {
     let a = patch_means(s.mesh(), &s.radiosity());
     let b = patch_means(fresh.mesh(), &fresh.radiosity());
     let d = patch_rms(s.mesh(), &a, &b);
-    // Both are solves of the same scene to the oracle's bound (ε = 0.05 of the mean,
-    // scaled by 1 − ρ̄) by different refinement histories: tolerance 2 ε.
+    // Both are solves of the same scene to the oracle's bound (ε = 0.05 of the mean E',
+    // about ε of the mean radiosity after the bounces) by different refinement
+    // histories: tolerance 2 ε.
     assert!(d <= 0.1, "edited vs fresh: {d}");
     assert!(s.stats().rays >= rays_before);
     // On the edited wall, the immediate update leaves only the change in the light that

@@ -94,9 +94,9 @@ pub struct SolveOptions {
     #[arg(long)]
     pub min_element_size: Option<f64>,
     /// Hierarchical: the refinement oracle's relative threshold ε (a link is refined when
-    /// its estimated error exceeds ε times the mean radiosity, or times the receiver's own
-    /// where it is darker, down to a tenth of the mean); smaller means more links and
-    /// elements.
+    /// its estimated error exceeds ε times the mean light the surfaces emit or first
+    /// reflect, scaled down where the receiver is darker than the mean, to a tenth at
+    /// most); smaller means more links and elements.
     #[arg(long, default_value_t = HierarchySettings::default().link_error)]
     pub link_error: f32,
     /// Hierarchical: start from every pair of patches instead of the root cluster.

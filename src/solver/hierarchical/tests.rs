@@ -605,7 +605,7 @@ fn edits_before_the_solve_converges_again_do_not_hold_it_back() {
 
 /// The rounds go from coarse to fine (`COARSE_START`), so the solve must end where rounds
 /// at the full threshold from the start end: both refine until no link's estimated error
-/// exceeds ε · B̄ · (1 − ρ̄) (their meshes then differ only where a link sits near its
+/// exceeds ε · Ē' (their meshes then differ only where a link sits near its
 /// threshold), so at points spread over every patch their radiosities must agree within
 /// ε of the mean (RMS over the points); and the later rounds must have moved it: the
 /// first round alone, at 16 ε, is at least twice as far from the full-threshold solve.
