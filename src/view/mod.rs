@@ -88,13 +88,16 @@ pub fn bounds(mesh: &Mesh) -> Option<(Vec3, f32)> {
 }
 
 /// The starting view. From the centre of the scene's bounds, rays go out along +z, −z,
-/// +x and −x:
+/// +x and −x, taking what lies beyond a tenth of the bounds' radius and passing through
+/// the backs of one-sided surfaces: an object at the centre is not the scene's shape
+/// (cornell-box-vinc3r has its logo there, through the very centre; the view stood
+/// inside it, and the picture was black):
 /// - the first that escapes is the open side (a Cornell box's missing front wall): look in
 ///   through it at the whole scene;
-/// - when all four hit surfaces that face the centre, the centre is inside a room or a
+/// - when all four meet surfaces facing the centre, the centre is inside a room or a
 ///   courtyard (Sponza's atrium): stand there and look along the longer horizontal axis;
-/// - otherwise (the centre is inside a closed object): the whole scene from above at an
-///   angle.
+/// - when every ray escaped only through the backs of surfaces, the centre is inside a
+///   closed object: the whole scene from above at an angle.
 pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     let Some((c, r)) = bounds(mesh) else {
         return Camera::default();
@@ -105,20 +108,16 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
         (Vec3::X, std::f32::consts::FRAC_PI_2),
         (-Vec3::X, -std::f32::consts::FRAC_PI_2),
     ];
-    let hits: Vec<_> = dirs
+    let seen: Vec<Sighting> = dirs
         .iter()
-        .map(|(d, _)| bvh.closest_hit(c, *d, 0.0, f32::INFINITY, u32::MAX))
+        .map(|(d, _)| sighting(mesh, bvh, c, *d, 0.1 * r))
         .collect();
-    if let Some(k) = hits.iter().position(|h| h.is_none()) {
-        return Camera::framing(c, r, dirs[k].1, 0.0);
-    }
-    let facing_centre = hits.iter().zip(&dirs).all(|(h, (d, _))| {
-        h.as_ref().is_some_and(|h| {
-            let t = &mesh.triangles[h.triangle as usize];
-            triangle_cross(t).dot(*d) < 0.0
-        })
-    });
-    if facing_centre {
+    let inside_an_object = seen.iter().all(|s| !s.meets_a_face && s.through_backs);
+    if let Some(k) = seen.iter().position(|s| !s.meets_a_face) {
+        if !inside_an_object {
+            return Camera::framing(c, r, dirs[k].1, 0.0);
+        }
+    } else {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for v in mesh.triangles.iter().flatten().filter(|v| v.is_finite()) {
             lo = lo.min(*v);
@@ -136,4 +135,40 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
         return cam;
     }
     Camera::framing(c, r, 0.6, 0.6)
+}
+
+/// What a ray from the scene's centre meets beyond `near`: a surface facing back at it
+/// (or double-sided), or nothing, and whether it passed through the backs of one-sided
+/// surfaces on the way.
+struct Sighting {
+    meets_a_face: bool,
+    through_backs: bool,
+}
+
+fn sighting(mesh: &Mesh, bvh: &Bvh, from: Vec3, d: Vec3, near: f32) -> Sighting {
+    let double_sided = |t: usize| {
+        mesh.triangle_patches
+            .get(t)
+            .is_some_and(|r| r.clone().any(|p| mesh.patches[p as usize].back))
+    };
+    let (mut t_min, mut skip, mut through_backs) = (near, u32::MAX, false);
+    // A bounded walk: a ray through a tangle of overlapping backs gives up as "escaped".
+    for _ in 0..64 {
+        let Some(hit) = bvh.closest_hit(from, d, t_min, f32::INFINITY, skip) else {
+            break;
+        };
+        let t = hit.triangle as usize;
+        if triangle_cross(&mesh.triangles[t]).dot(d) < 0.0 || double_sided(t) {
+            return Sighting {
+                meets_a_face: true,
+                through_backs,
+            };
+        }
+        through_backs = true;
+        (t_min, skip) = (hit.t, hit.triangle);
+    }
+    Sighting {
+        meets_a_face: false,
+        through_backs,
+    }
 }

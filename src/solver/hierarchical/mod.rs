@@ -1082,9 +1082,9 @@ impl Solver {
         if h.coarseness <= 1.0 || !h.threshold.is_finite() {
             return full;
         }
-        let gain = (1.0 - self.mean_reflectance()).max(1e-3);
-        let coarse =
-            0.1 * h.coarseness as f64 * self.settings.hierarchy.link_error as f64 * gain;
+        let absorbed = (1.0 - self.mean_reflectance()).max(1e-3);
+        let eps = self.settings.hierarchy.link_error as f64;
+        let coarse = 0.1 * h.coarseness as f64 * eps * absorbed;
         full.max(coarse)
     }
 
