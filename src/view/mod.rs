@@ -92,12 +92,13 @@ pub fn bounds(mesh: &Mesh) -> Option<(Vec3, f32)> {
 /// the backs of one-sided surfaces: an object at the centre is not the scene's shape
 /// (cornell-box-vinc3r has its logo there, through the very centre; the view stood
 /// inside it, and the picture was black):
-/// - the first that escapes is the open side (a Cornell box's missing front wall): look in
-///   through it at the whole scene;
+/// - when one escapes and at least two meet surfaces, the first that escapes is the open
+///   side (a Cornell box's missing front wall): look in through it at the whole scene;
 /// - when all four meet surfaces facing the centre, the centre is inside a room or a
 ///   courtyard (Sponza's atrium): stand there and look along the longer horizontal axis;
-/// - when every ray escaped only through the backs of surfaces, the centre is inside a
-///   closed object: the whole scene from above at an angle.
+/// - otherwise the scene is an object, or objects, to look at from outside (the centre
+///   may be inside one, or in the open beside a single surface): the whole scene from
+///   above at an angle.
 pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     let Some((c, r)) = bounds(mesh) else {
         return Camera::default();
@@ -108,13 +109,13 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
         (Vec3::X, std::f32::consts::FRAC_PI_2),
         (-Vec3::X, -std::f32::consts::FRAC_PI_2),
     ];
-    let seen: Vec<Sighting> = dirs
+    let met: Vec<bool> = dirs
         .iter()
-        .map(|(d, _)| sighting(mesh, bvh, c, *d, 0.1 * r))
+        .map(|(d, _)| meets_a_face(mesh, bvh, c, *d, 0.1 * r))
         .collect();
-    let inside_an_object = seen.iter().all(|s| !s.meets_a_face && s.through_backs);
-    if let Some(k) = seen.iter().position(|s| !s.meets_a_face) {
-        if !inside_an_object {
+    let faces = met.iter().filter(|m| **m).count();
+    if let Some(k) = met.iter().position(|m| !m) {
+        if faces >= 2 {
             return Camera::framing(c, r, dirs[k].1, 0.0);
         }
     } else {
@@ -137,21 +138,15 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
     Camera::framing(c, r, 0.6, 0.6)
 }
 
-/// What a ray from the scene's centre meets beyond `near`: a surface facing back at it
-/// (or double-sided), or nothing, and whether it passed through the backs of one-sided
-/// surfaces on the way.
-struct Sighting {
-    meets_a_face: bool,
-    through_backs: bool,
-}
-
-fn sighting(mesh: &Mesh, bvh: &Bvh, from: Vec3, d: Vec3, near: f32) -> Sighting {
+/// Whether a ray from the scene's centre meets, beyond `near`, a surface facing back at it
+/// (or double-sided), passing through the backs of one-sided surfaces on the way.
+fn meets_a_face(mesh: &Mesh, bvh: &Bvh, from: Vec3, d: Vec3, near: f32) -> bool {
     let double_sided = |t: usize| {
         mesh.triangle_patches
             .get(t)
             .is_some_and(|r| r.clone().any(|p| mesh.patches[p as usize].back))
     };
-    let (mut t_min, mut skip, mut through_backs) = (near, u32::MAX, false);
+    let (mut t_min, mut skip) = (near, u32::MAX);
     // A bounded walk: a ray through a tangle of overlapping backs gives up as "escaped".
     for _ in 0..64 {
         let Some(hit) = bvh.closest_hit(from, d, t_min, f32::INFINITY, skip) else {
@@ -159,16 +154,9 @@ fn sighting(mesh: &Mesh, bvh: &Bvh, from: Vec3, d: Vec3, near: f32) -> Sighting 
         };
         let t = hit.triangle as usize;
         if triangle_cross(&mesh.triangles[t]).dot(d) < 0.0 || double_sided(t) {
-            return Sighting {
-                meets_a_face: true,
-                through_backs,
-            };
+            return true;
         }
-        through_backs = true;
         (t_min, skip) = (hit.t, hit.triangle);
     }
-    Sighting {
-        meets_a_face: false,
-        through_backs,
-    }
+    false
 }
