@@ -73,8 +73,8 @@ fn furnace_at_rho_099_is_exact_with_clustering_on() {
     // B = E / (1 − ρ) = 100 everywhere, to 0.1 % (the figure) for the box and the
     // 320-facet sphere alike. The oracle's bound alone would allow more: it holds each
     // link's estimated error to ε · Ē' (the mean of E'), and after all bounces that is
-    // about ε · Ē' / (1 − ρ) = ε · B̄, 1 % at ε = 0.01. But in a closed scene every leaf's links and its share
-    // along its rays (`sight`: one hemisphere less what its surface links hand it) sum to
+    // about ε · Ē' / (1 − ρ) = ε · B̄, 1 % at ε = 0.01. But in a closed scene every leaf's
+    // links and its share along its rays (`sight`: one hemisphere less what its surface links hand it) sum to
     // exactly one hemisphere, so a uniform B is reproduced whatever the links are; what
     // is left is f32 rounding and the sweeps' stopping. Swept to 1e-4 (their stopping is
     // scaled by 1 − ρ̄, so what they leave is about 1e-4 of B). Measured (2026-12-07):

@@ -30,11 +30,8 @@ fn what_the_starting_view_sees(spec: &str) -> (f64, f64) {
                 continue;
             };
             hits += 1;
-            let t = hit.triangle as usize;
-            let double_sided = mesh.triangle_patches[t]
-                .clone()
-                .any(|p| mesh.patches[p as usize].back);
-            if triangle_cross(&mesh.triangles[t]).dot(d) < 0.0 || double_sided {
+            let facing = triangle_cross(&mesh.triangles[hit.triangle as usize]).dot(d) < 0.0;
+            if facing || mesh.double_sided(hit.triangle) {
                 fronts += 1;
             }
         }

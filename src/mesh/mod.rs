@@ -253,6 +253,13 @@ impl Mesh {
         Ok((mesh, bvh))
     }
 
+    /// Whether scene triangle `triangle` is double-sided (it has patches on its back).
+    pub fn double_sided(&self, triangle: u32) -> bool {
+        self.triangle_patches
+            .get(triangle as usize)
+            .is_some_and(|r| r.clone().any(|p| self.patches[p as usize].back))
+    }
+
     /// The element under point `x` (mesh frame, on scene triangle `triangle`) on the side
     /// whose normal has a positive dot product with `toward` (the direction back to an
     /// observer). `None` for the back of single-sided surfaces and degenerate triangles.

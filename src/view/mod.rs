@@ -141,19 +141,14 @@ pub fn default_camera(mesh: &Mesh, bvh: &Bvh) -> Camera {
 /// Whether a ray from the scene's centre meets, beyond `near`, a surface facing back at it
 /// (or double-sided), passing through the backs of one-sided surfaces on the way.
 fn meets_a_face(mesh: &Mesh, bvh: &Bvh, from: Vec3, d: Vec3, near: f32) -> bool {
-    let double_sided = |t: usize| {
-        mesh.triangle_patches
-            .get(t)
-            .is_some_and(|r| r.clone().any(|p| mesh.patches[p as usize].back))
-    };
     let (mut t_min, mut skip) = (near, u32::MAX);
     // A bounded walk: a ray through a tangle of overlapping backs gives up as "escaped".
     for _ in 0..64 {
         let Some(hit) = bvh.closest_hit(from, d, t_min, f32::INFINITY, skip) else {
             break;
         };
-        let t = hit.triangle as usize;
-        if triangle_cross(&mesh.triangles[t]).dot(d) < 0.0 || double_sided(t) {
+        let facing = triangle_cross(&mesh.triangles[hit.triangle as usize]).dot(d) < 0.0;
+        if facing || mesh.double_sided(hit.triangle) {
             return true;
         }
         (t_min, skip) = (hit.t, hit.triangle);

@@ -948,14 +948,11 @@ impl Solver {
                 self.note_first_solution(h);
                 self.stats.residual = Some(change);
                 self.stats.iterations += 1;
-                // The tolerance is scaled by 1 − ρ̄ (`sweep_tolerance`). The sweep
-                // gathers H in f32, so its change cannot fall below f32 rounding (a few
-                // 10⁻⁸ per element): a tighter tolerance would let the sweeps cycle at
-                // that level for ever, so it is held at SWEEP_FLOOR.
                 // Converged to the full tolerance (what an edit's rebase needs), or only
                 // as far as the next, coarser round needs.
-                h.converged = change <= self.sweep_tolerance().max(SWEEP_FLOOR);
-                if change <= self.round_sweep_tolerance(h) {
+                let absorbed = self.absorbed();
+                h.converged = change <= self.sweep_tolerance(absorbed);
+                if change <= self.round_sweep_tolerance(h, absorbed) {
                     h.stage = Stage::Refine;
                 }
             }
@@ -1059,11 +1056,18 @@ impl Solver {
         }
     }
 
-    /// The change per sweep the sweeps stop at: the tolerance scaled by 1 − ρ̄ (Jacobi's
-    /// change per sweep shrinks by about ρ̄ each sweep, so what is left is change · ρ̄ /
-    /// (1 − ρ̄)).
-    fn sweep_tolerance(&self) -> f64 {
-        self.settings.tolerance * (1.0 - self.mean_reflectance()).max(1e-3)
+    /// 1 − ρ̄, at least 10⁻³: what a bounce absorbs (one pass over the elements).
+    fn absorbed(&self) -> f64 {
+        (1.0 - self.mean_reflectance()).max(1e-3)
+    }
+
+    /// The change per sweep the sweeps stop at: the tolerance scaled by `absorbed`,
+    /// 1 − ρ̄ (Jacobi's change per sweep shrinks by about ρ̄ each sweep, so what is left
+    /// is change · ρ̄ / (1 − ρ̄)). The sweep gathers H in f32, so its change cannot fall
+    /// below f32 rounding (a few 10⁻⁸ per element): a tighter tolerance would let the
+    /// sweeps cycle at that level for ever, so it is held at [`SWEEP_FLOOR`].
+    fn sweep_tolerance(&self, absorbed: f64) -> f64 {
+        (self.settings.tolerance * absorbed).max(SWEEP_FLOOR)
     }
 
     /// The change per sweep at which a refinement round's sweeps hand over to the next
@@ -1076,13 +1080,12 @@ impl Solver {
     /// with the threshold from the scene's gain, whose rounds really do go from coarse
     /// to fine there, 329 (56 now; the box cut to 3,000 links 117–152 with a looser
     /// restart of Anderson's window, 12 now).
-    fn round_sweep_tolerance(&self, h: &Hierarchy) -> f64 {
-        let full = self.sweep_tolerance().max(SWEEP_FLOOR);
+    fn round_sweep_tolerance(&self, h: &Hierarchy, absorbed: f64) -> f64 {
+        let full = self.sweep_tolerance(absorbed);
         // Past the link budget (or at an infinite ε) no round refines anything.
         if h.coarseness <= 1.0 || !h.threshold.is_finite() {
             return full;
         }
-        let absorbed = (1.0 - self.mean_reflectance()).max(1e-3);
         let eps = self.settings.hierarchy.link_error as f64;
         let coarse = 0.1 * h.coarseness as f64 * eps * absorbed;
         full.max(coarse)
@@ -1126,7 +1129,7 @@ impl Solver {
         // The acceleration's history is for one set of links: these are not the last
         // preview's, nor those the round's own sweeps will have.
         h.acceleration.restart();
-        let tolerance = self.sweep_tolerance().max(SWEEP_FLOOR);
+        let tolerance = self.sweep_tolerance(self.absorbed());
         let made = (1..=sweeps)
             .find(|_| self.sweep(h, false) <= tolerance)
             .unwrap_or(sweeps);
