@@ -103,6 +103,10 @@ pub struct HierarchySettings {
     /// under way is the last), and the stats say so (`link_budget_reached`). Taken as at
     /// most [`MAX_LINK_BUDGET`].
     pub max_links: usize,
+    /// A round at ε that makes at most this share of the links new is the oracle's last
+    /// (see `hierarchical::ROUND_TOLERANCE`, the default); 0: the rounds go on until one
+    /// changes nothing.
+    pub round_tolerance: f64,
 }
 
 /// The largest link budget there is: a generation turns each link into at most 16 (a
@@ -122,6 +126,7 @@ impl Default for HierarchySettings {
             min_size: None,
             max_elements: 2_000_000,
             max_links: 1 << 24,
+            round_tolerance: crate::solver::hierarchical::ROUND_TOLERANCE,
         }
     }
 }
@@ -205,7 +210,7 @@ pub struct Stats {
     pub incremental_sweeps: Option<u64>,
     /// Hierarchical: the refinement round under way among the rounds from coarse to fine
     /// (counted from 0), and their number; the last, at the oracle's ε, repeats until it
-    /// changes nothing. What the viewer's progress bar counts besides the residual.
+    /// changes nothing or little (`hierarchical::ROUND_TOLERANCE`). What the viewer's progress bar counts besides the residual.
     #[serde(skip)]
     pub refinement_round: Option<(u32, u32)>,
 }

@@ -117,6 +117,8 @@ pub(super) struct Round {
     /// 27.7 s, one after the other), and shows the emitters' light from 2 s on (67 % off
     /// at 5–25 s instead of 81 %).
     restart: bool,
+    /// The new links the round has made (pairs evaluated).
+    new_links: usize,
     leaves: Vec<u32>,
     changed: bool,
     /// What one sweep of the last preview cost, in links (see `preview_cost`); zero
@@ -903,6 +905,7 @@ impl Solver {
         let mut round = match h.round.take() {
             Some(r) => r,
             None => {
+                h.round_new_links = 0;
                 let mut changed = false;
                 if h.sweeps == 0 && h.links.is_empty() {
                     let (mut links, rays) = self.initial_links(h, min_size);
@@ -977,6 +980,7 @@ impl Solver {
                 if round.threshold.is_infinite() {
                     h.threshold = f32::INFINITY;
                 }
+                h.round_new_links = round.new_links;
                 let mut kept = std::mem::take(&mut round.kept);
                 kept.par_sort_unstable_by_key(|l| (l.receiver, l.source));
                 // Past the link budget no round runs again: the misses are not needed.
@@ -1030,6 +1034,7 @@ impl Solver {
                 .collect();
             self.stats.rays += made.iter().map(|m| m.1 as u64).sum::<u64>();
             round.made.extend(made.into_iter().map(|m| m.0));
+            round.new_links += end - round.next_pair;
             round.next_pair = end;
             if end == round.pairs.len() {
                 round.pairs = Vec::new();

@@ -746,3 +746,61 @@ fn deciding_lit_links_first_changes_no_solution() {
         "{light} against {light_b}"
     );
 }
+
+/// The area-weighted mean B of each patch (all channels): patches are the same in any
+/// two solves of one scene, whatever their leaves.
+fn patch_means(s: &Solver) -> Vec<DVec3> {
+    s.mesh
+        .patches
+        .iter()
+        .map(|p| {
+            let (mut sum, mut area) = (DVec3::ZERO, 0.0);
+            for e in p.elements.clone() {
+                let a = s.mesh.elements[e as usize].area as f64;
+                sum += s.radiosity[e as usize] * a;
+                area += a;
+            }
+            sum / area
+        })
+        .collect()
+}
+
+/// A round at ε that makes at most a thousandth of the links new is the oracle's last
+/// (`ROUND_TOLERANCE`): its links are refined a little less than the rounds would go on
+/// to, so each patch may differ from the solve whose rounds go on until one changes
+/// nothing by about what a link kept at the threshold misses. The bound is that
+/// threshold, ε times the mean E' (`Solver::link_threshold`), on every patch's mean B.
+/// Measured on the built-in Cornell box at ε = 0.05: 14 sweeps against 17, 32 links fewer
+/// of 1.42 M, the worst patch 1.0·10⁻⁵ W/m² off against a threshold of 1.9·10⁻².
+#[test]
+fn a_round_that_makes_few_links_ends_the_solve_within_the_oracles_threshold() {
+    let run = |round_tolerance| {
+        let mut s = solver(
+            MeshSettings::default(),
+            HierarchySettings {
+                link_error: 0.05,
+                round_tolerance,
+                ..Default::default()
+            },
+            1e-4,
+        );
+        s.run(None, crate::cancel::never()).unwrap();
+        assert!(s.stats.converged);
+        s
+    };
+    let (early, full) = (run(ROUND_TOLERANCE), run(0.0));
+    let threshold = full.link_threshold() as f64;
+    let (a, b) = (patch_means(&early), patch_means(&full));
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (*x - *y).abs().max_element())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "sweeps {} / {}, links {:?} / {:?}, worst patch {worst:.3e} (threshold {threshold:.3e})",
+        early.stats.iterations, full.stats.iterations, early.stats.links, full.stats.links
+    );
+    // The early end did come: otherwise this test compares a solve with itself.
+    assert!(early.stats.iterations < full.stats.iterations);
+    assert!(worst <= threshold, "worst patch {worst} over {threshold}");
+}
