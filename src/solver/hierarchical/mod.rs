@@ -72,18 +72,17 @@ pub(in crate::solver) struct NodeId(pub u32);
 const CLUSTER_BIT: u32 = 1 << 31;
 const NONE: u32 = u32::MAX;
 
-/// The first refinement round's threshold over the oracle's; each round after converged
-/// sweeps halves it, down to the oracle's own (16 ε, 8 ε, 4 ε, 2 ε, ε), and the solve is
-/// done only when a round at ε changes nothing or little (`ROUND_TOLERANCE`). Each round keeps the last one's links and
-/// refines those above its threshold. Refining to ε at once showed only the top levels'
-/// previews until the whole first round was done: on the Cornell box (`bench
-/// builtin:cornell --methods hierarchical`) 8.1 % off the truth from 1.5 s to 8.6 s, then
-/// 1.8 %; coarse to fine, 5.3 % at 1.5 s, 3.2 % at 2.5 s, 2.1 % at 5 s, and 1.75 %
-/// converged at 10.7 s instead of 11.8 s. (Before the clusters' light went along the
-/// leaves' rays, a first round at 4 ε or 16 ε came out 50 % too bright.) A scene the
-/// link budget will cut goes on at ε once a coarse round holds a quarter of the budget
-/// (`oracle`): spent coarse-first, the budget went deep in a few places, and Sponza's
-/// interior points came out 20.5 % off instead of 16.4 %.
+/// The first refinement round's threshold over the oracle's; each round after converged sweeps
+/// halves it, down to the oracle's own (16 ε, 8 ε, 4 ε, 2 ε, ε), and the solve is done only when a
+/// round at ε changes nothing or little (`ROUND_TOLERANCE`). Each round keeps the last one's links
+/// and refines those above its threshold. Refining to ε at once showed only the top levels'
+/// previews until the whole first round was done: on the Cornell box (`bench builtin:cornell
+/// --methods hierarchical`) 8.1 % off the truth from 1.5 s to 8.6 s, then 1.8 %; coarse to fine,
+/// 5.3 % at 1.5 s, 3.2 % at 2.5 s, 2.1 % at 5 s, and 1.75 % converged at 10.7 s instead of 11.8 s.
+/// (Before the clusters' light went along the leaves' rays, a first round at 4 ε or 16 ε came out
+/// 50 % too bright.) A scene the link budget will cut goes on at ε once a coarse round holds a
+/// quarter of the budget (`oracle`): spent coarse-first, the budget went deep in a few places, and
+/// Sponza's interior points came out 20.5 % off instead of 16.4 %.
 const COARSE_START: f32 = 16.0;
 
 /// The smallest change per sweep the sweeps are asked to reach: f32 irradiance rounds
