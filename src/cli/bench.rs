@@ -367,6 +367,61 @@ fn cache_key(scene: &Scene, settings: &ReferenceSettings, counts: &ProbeCounts) 
 /// How much a method's step time grows between two points of its convergence curve.
 const SAMPLE_GROWTH: f64 = 1.02;
 
+/// The solve's time at which the final gather at the points is first taken on the way;
+/// then each time the solve's time has doubled (see `GatherCurve`).
+const FIRST_GATHER_SECONDS: f64 = 0.25;
+
+/// The final gather at the reference points taken on the way, not only at the end: how
+/// fast the gathered answer gets how close. A gather is due each time the solve's time has
+/// doubled since the last one, while the gathers so far have cost no more than the solve
+/// (on Sponza one takes 30 s, on the Cornell box 0.5 s); each row stands at the solve's
+/// time plus that gather's own, what a user waits for that answer.
+struct GatherCurve {
+    next: f64,
+    spent: f64,
+    rows: Vec<Row>,
+}
+
+impl GatherCurve {
+    fn new() -> GatherCurve {
+        GatherCurve {
+            next: FIRST_GATHER_SECONDS,
+            spent: 0.0,
+            rows: Vec::new(),
+        }
+    }
+
+    /// Whether a gather is due at solve time `seconds` (always at the solve's end).
+    fn due(&self, seconds: f64, last: bool) -> bool {
+        last || (seconds >= self.next && self.spent <= seconds)
+    }
+
+    /// Gathers at `points` from `solver`'s solution as it is, and keeps the row.
+    fn take(
+        &mut self,
+        solver: &crate::solver::Solver,
+        points: &[(glam::DVec3, glam::DVec3)],
+        settings: crate::solver::gather::GatherSettings,
+        label: &str,
+        errors: impl Fn(&[Vec3]) -> Errors,
+    ) -> &Row {
+        let t = Instant::now();
+        let values = solver.gatherer(settings).at_points(points);
+        let gather_seconds = t.elapsed().as_secs_f64();
+        let s = solver.stats();
+        self.spent += gather_seconds;
+        self.next = 2.0 * s.seconds.max(self.next);
+        let row = Row::new(
+            label.to_string(),
+            s,
+            s.seconds + gather_seconds,
+            errors(&values),
+        );
+        self.rows.push(row);
+        self.rows.last().unwrap()
+    }
+}
+
 /// `bench SCENE --out DIR`: runs each method against the reference, writes the curves.
 pub fn convergence(
     scene: &Scene,
@@ -464,6 +519,8 @@ pub fn convergence(
         };
         let cancel = AtomicBool::new(false);
         let first = rows.len();
+        let mut gathers = GatherCurve::new();
+        let gather_label = format!("{}+gather", method.name());
         loop {
             let outcome = solver.step(&cancel)?;
             let s = solver.stats();
@@ -478,6 +535,12 @@ pub fn convergence(
             if due || last {
                 let errors = errors(solver.mesh(), &solver.radiosity());
                 rows.push(Row::new(method.name().to_string(), s, s.seconds, errors));
+            }
+            if let Reference::Points { points, .. } = &reference
+                && gathers.due(s.seconds, last)
+            {
+                let settings = options.gather_settings();
+                gathers.take(&solver, points, settings, &gather_label, &point_stats);
             }
             if last {
                 break;
@@ -504,24 +567,22 @@ pub fn convergence(
         print_classes(&last.classes);
         summary += &line;
         summary.push('\n');
-        if let Reference::Points { points, .. } = &reference {
-            // The final gather at the points from the converged (or last) solution: one row,
-            // at the solve's time plus the gather's.
-            let t = Instant::now();
-            let values = solver.gatherer(options.gather_settings()).at_points(points);
-            let gather_seconds = t.elapsed().as_secs_f64();
-            let s = solver.stats();
-            let label = format!("{}+gather", method.name());
-            let row = Row::new(label, s, s.seconds + gather_seconds, point_stats(&values));
+        if let (Reference::Points { points, .. }, Some(row)) = (&reference, gathers.rows.last()) {
+            // The final gather at the points from the converged (or last) solution, and the
+            // first time a gather on the way was within 1 %.
+            let to_1pct = gathers.rows.iter().find(|r| r.rms <= 0.01);
             println!(
-                "{:<17} final gather at {} points: {gather_seconds:.3} s, RMS {:.2e}, max {:.2e}",
+                "{:<17} time to 1% RMS: {:>9}  final gather at {} points: {:.3} s, RMS {:.2e}, max {:.2e} ({} gathers)",
                 row.label,
+                to_1pct.map_or("never".into(), |r| format!("{:.3} s", r.seconds)),
                 points.len(),
+                row.seconds - last.seconds,
                 row.rms,
-                row.max
+                row.max,
+                gathers.rows.len()
             );
             print_classes(&row.classes);
-            rows.push(row);
+            rows.append(&mut gathers.rows);
         }
     }
     let (label, metric) = match &reference {
