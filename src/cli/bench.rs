@@ -404,7 +404,7 @@ impl GatherCurve {
         settings: crate::solver::gather::GatherSettings,
         label: &str,
         errors: impl Fn(&[Vec3]) -> Errors,
-    ) -> &Row {
+    ) {
         let t = Instant::now();
         let values = solver.gatherer(settings).at_points(points);
         let gather_seconds = t.elapsed().as_secs_f64();
@@ -418,7 +418,6 @@ impl GatherCurve {
             errors(&values),
         );
         self.rows.push(row);
-        self.rows.last().unwrap()
     }
 }
 
@@ -540,7 +539,7 @@ pub fn convergence(
                 && gathers.due(s.seconds, last)
             {
                 let settings = options.gather_settings();
-                gathers.take(&solver, points, settings, &gather_label, &point_stats);
+                gathers.take(&solver, points, settings, &gather_label, point_stats);
             }
             if last {
                 break;
