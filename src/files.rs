@@ -25,6 +25,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         path: path.display().to_string(),
         cause,
     };
+    // Through a link to a file, that file is the one replaced (errors still name `path`).
+    let mut resolved = None;
     if let Ok(meta) = std::fs::metadata(path) {
         if !meta.is_file() {
             let write = || -> std::io::Result<()> {
@@ -36,18 +38,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
             return write().map_err(error);
         }
         if path.is_symlink() {
-            let target = std::fs::canonicalize(path).map_err(error)?;
-            return write_atomic(&target, bytes).map_err(|e| WriteError {
-                path: path.display().to_string(),
-                cause: e.cause,
-            });
+            resolved = Some(std::fs::canonicalize(path).map_err(error)?);
         }
     }
-    let dir = path
+    let target = resolved.as_deref().unwrap_or(path);
+    let dir = target
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let name = path.file_name().ok_or_else(|| {
+    let name = target.file_name().ok_or_else(|| {
         error(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             "the path has no file name",
@@ -62,7 +61,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, target)
     })();
     if result.is_err() {
         // The write already failed; a leftover temporary file is the lesser problem, and

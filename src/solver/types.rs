@@ -210,7 +210,8 @@ pub struct Stats {
     pub incremental_sweeps: Option<u64>,
     /// Hierarchical: the refinement round under way among the rounds from coarse to fine
     /// (counted from 0), and their number; the last, at the oracle's ε, repeats until it
-    /// changes nothing or little (`hierarchical::ROUND_TOLERANCE`). What the viewer's progress bar counts besides the residual.
+    /// changes nothing or little (`hierarchical::ROUND_TOLERANCE`). What the viewer's
+    /// progress bar counts besides the residual.
     #[serde(skip)]
     pub refinement_round: Option<(u32, u32)>,
 }

@@ -747,24 +747,6 @@ fn deciding_lit_links_first_changes_no_solution() {
     );
 }
 
-/// The area-weighted mean B of each patch (all channels): patches are the same in any
-/// two solves of one scene, whatever their leaves.
-fn patch_means(s: &Solver) -> Vec<DVec3> {
-    s.mesh
-        .patches
-        .iter()
-        .map(|p| {
-            let (mut sum, mut area) = (DVec3::ZERO, 0.0);
-            for e in p.elements.clone() {
-                let a = s.mesh.elements[e as usize].area as f64;
-                sum += s.radiosity[e as usize] * a;
-                area += a;
-            }
-            sum / area
-        })
-        .collect()
-}
-
 /// A round at ε that makes at most a thousandth of the links new is the oracle's last
 /// (`ROUND_TOLERANCE`): its links are refined a little less than the rounds would go on
 /// to, so each patch may differ from the solve whose rounds go on until one changes
@@ -790,7 +772,11 @@ fn a_round_that_makes_few_links_ends_the_solve_within_the_oracles_threshold() {
     };
     let (early, full) = (run(ROUND_TOLERANCE), run(0.0));
     let threshold = full.link_threshold() as f64;
-    let (a, b) = (patch_means(&early), patch_means(&full));
+    // Patches are the same in any two solves of one scene, whatever their leaves.
+    let (a, b) = (
+        early.patch_means(&early.radiosity),
+        full.patch_means(&full.radiosity),
+    );
     let worst = a
         .iter()
         .zip(&b)
