@@ -1,7 +1,8 @@
 //! Splitting a triangle along its discontinuity lines (contact lines from `contact`,
 //! shadow lines from `shadow`): a constrained Delaunay triangulation of the triangle with
 //! the segments as constraints (`spade`, which also splits constraints where they cross),
-//! refined so no angle is below 25° and no piece is much larger than a patch, and the
+//! refined so no angle is below 25° and no piece is much larger than a patch (or, where
+//! that refinement fails, given a lattice of points a patch apart), and the
 //! pieces grouped into *regions*: pieces connected without crossing a segment. The display
 //! mesh does not weld vertices on a segment across regions, so Gouraud and Hermite shading
 //! jump there instead of smearing the dark underside into the lit floor.
@@ -50,7 +51,31 @@ fn quiet_spade_panics() {
 /// Splits triangle `verts` along `cuts` (segments in its plane, inside it) into pieces
 /// with edges no longer than about `max_len` (0: no limit). `None` when the
 /// triangulation fails (then the triangle stays whole).
+///
+/// The triangulation asserts on inputs it cannot handle: its refinement, with the
+/// triangle's edges kept whole, can fail to place a point ("Failed to locate position").
+/// It did on 254 of NegativeScaleTest's triangles, among them the two halves of its
+/// background, cut by 176 and 492 contact segments, whose pieces then fanned from the
+/// labels' outlines across the whole plane and shaded in streaks, and on 2,748 of
+/// Sponza's (without `keep_constraint_edges` the refinement ran to its 4,096-vertex cap
+/// on small triangles instead: 644,224 patches for NegativeScaleTest's 26,751). Then the
+/// triangle is split with a lattice of points about a patch apart ([`lattice`]), which
+/// keeps its pieces within a few patch lengths; failing that with neither, and failing
+/// that it stays whole rather than ending the load.
 pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Option<Vec<Piece>> {
+    [Quality::Refined, Quality::Lattice, Quality::Plain]
+        .into_iter()
+        .find_map(|quality| split_as(verts, cuts, max_len, quality))
+}
+
+/// [`split`] with the given way of avoiding slivers; `None` where the triangulation
+/// fails.
+fn split_as(
+    verts: [Vec3; 3],
+    cuts: &[[Vec3; 2]],
+    max_len: f64,
+    quality: Quality,
+) -> Option<Vec<Piece>> {
     let max_len = if max_len > 0.0 {
         max_len
     } else {
@@ -66,7 +91,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         Point2::new(q.dot(u), q.dot(w))
     };
     let to3 = |p: Point2<f64>| (v[0] + u * p.x + w * p.y).as_vec3();
-    let run = |refine: bool| -> Option<Vec<Piece>> {
+    let run = || -> Option<Vec<Piece>> {
         let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
             ConstrainedDelaunayTriangulation::new();
         for p in v {
@@ -134,7 +159,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         };
         // Constraints are put in in pieces no longer than `max_len` (the patch length),
         // so the refinement below never needs to split them.
-        for (ha, hb) in segments {
+        for &(ha, hb) in &segments {
             if ha != hb {
                 let (a, b) = (cdt.vertex(ha).position(), cdt.vertex(hb).position());
                 let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
@@ -182,7 +207,7 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         // than a patch (Ruppert's refinement, constraints kept whole): contact lines that
         // end inside the triangle would otherwise leave long slivers fanning out to its
         // corners, and slivers shade in streaks.
-        if refine {
+        if quality == Quality::Refined {
             cdt.refine(
                 RefinementParameters::<f64>::new()
                     .with_angle_limit(AngleLimit::from_deg(25.0))
@@ -190,6 +215,11 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
                     .keep_constraint_edges()
                     .with_max_additional_vertices(4096),
             );
+        }
+        if quality == Quality::Lattice {
+            for q in lattice(c, max_len, &segment_positions(&cdt, &segments)) {
+                cdt.insert(Point2::new(q.x, q.y)).ok()?;
+            }
         }
         // Constraint edges (the contact lines and the triangle's edges) bound regions. The
         // triangle's edges must too: where rounding leaves the points on an edge a hair
@@ -247,17 +277,80 @@ pub(super) fn split(verts: [Vec3; 3], cuts: &[[Vec3; 2]], max_len: f64) -> Optio
         }
         Some(pieces)
     };
-    // The triangulation asserts on inputs it cannot handle (its refinement, with the
-    // triangle's edges kept whole, can fail to place a point): then the triangle is split
-    // without refinement, and failing that it stays whole rather than ending the load.
     quiet_spade_panics();
-    let attempt = |refine: bool| {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(refine)))
-            .ok()
-            .flatten()
-            .filter(|p| !p.is_empty())
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
+        .ok()
+        .flatten()
+        .filter(|p| !p.is_empty())
+}
+
+/// How the pieces of a split triangle are kept from long slivers.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Quality {
+    /// Ruppert's refinement.
+    Refined,
+    /// A lattice of interior points (see [`lattice`]).
+    Lattice,
+    /// Neither: the constrained Delaunay triangulation of the lines alone.
+    Plain,
+}
+
+/// The constrained segments' end positions.
+fn segment_positions(
+    cdt: &ConstrainedDelaunayTriangulation<Point2<f64>>,
+    segments: &[(FixedVertexHandle, FixedVertexHandle)],
+) -> Vec<[DVec2; 2]> {
+    segments
+        .iter()
+        .map(|&(a, b)| {
+            [a, b].map(|h| {
+                let p = cdt.vertex(h).position();
+                DVec2::new(p.x, p.y)
+            })
+        })
+        .collect()
+}
+
+/// Points of a square lattice of spacing `step` inside the triangle `c` (its own 2D
+/// frame), leaving out those within a quarter step of its edges or of a `segment`: a
+/// piece then spans at most about a step, wherever the lines run, and none is made
+/// thinner than a quarter step by a lattice point.
+fn lattice(c: [DVec2; 3], step: f64, segments: &[[DVec2; 2]]) -> Vec<DVec2> {
+    let lo = c[0].min(c[1]).min(c[2]);
+    let hi = c[0].max(c[1]).max(c[2]);
+    if step.is_nan() || step <= 0.0 || ((hi - lo) / step).max_element() > 1024.0 {
+        return Vec::new();
+    }
+    let margin = 0.25 * step;
+    let near = |p: DVec2, [a, b]: [DVec2; 2]| {
+        let ab = b - a;
+        let t = ((p - a).dot(ab) / ab.length_squared().max(1e-300)).clamp(0.0, 1.0);
+        (a + ab * t - p).length() < margin
     };
-    attempt(true).or_else(|| attempt(false))
+    let edges = [[c[0], c[1]], [c[1], c[2]], [c[2], c[0]]];
+    let twice_area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
+    let inside = |p: DVec2| {
+        edges
+            .iter()
+            .all(|[a, b]| (*b - *a).perp_dot(p - *a) * twice_area.signum() > 0.0)
+    };
+    let mut points = Vec::new();
+    let mut y = lo.y + 0.5 * step;
+    while y < hi.y {
+        let mut x = lo.x + 0.5 * step;
+        while x < hi.x {
+            let p = DVec2::new(x, y);
+            if inside(p)
+                && !edges.iter().any(|e| near(p, *e))
+                && !segments.iter().any(|s| near(p, *s))
+            {
+                points.push(p);
+            }
+            x += step;
+        }
+        y += step;
+    }
+    points
 }
 
 #[cfg(test)]
@@ -389,5 +482,92 @@ mod tests {
                 "max_len {max_len}: {under} against {footprint}"
             );
         }
+    }
+
+    /// The longest edge of any piece.
+    fn longest_edge(pieces: &[Piece]) -> f32 {
+        pieces
+            .iter()
+            .flat_map(|p| (0..3).map(|k| (p.verts[k] - p.verts[(k + 1) % 3]).length()))
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn the_lattice_fallback_keeps_pieces_within_a_few_patch_lengths() {
+        // A 10 m triangle with a 30 cm footprint near one corner and a short line in the
+        // middle, cut into patches of 1 m: the triangulation of the lines alone fans from
+        // them to the far corners. With the lattice (what a triangle gets when spade's
+        // refinement fails) no piece is longer than 3 m: a constrained Delaunay edge is a
+        // chord of a circle empty of vertices, and no circle wider than about 1.46 steps
+        // (a lattice cell's half diagonal, 0.71, plus the quarter-step margin kept free
+        // around the lines and edges, plus half a step between the points put on the
+        // lines) is empty of the lattice, the lines' and the edges' points.
+        let t = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(10.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, -10.0),
+        ];
+        let q = [
+            Vec3::new(0.5, 0.0, -0.5),
+            Vec3::new(0.8, 0.0, -0.5),
+            Vec3::new(0.8, 0.0, -0.8),
+            Vec3::new(0.5, 0.0, -0.8),
+        ];
+        let mut cuts: Vec<[Vec3; 2]> = (0..4).map(|k| [q[k], q[(k + 1) % 4]]).collect();
+        cuts.push([Vec3::new(3.0, 0.0, -3.0), Vec3::new(3.4, 0.0, -3.2)]);
+        let step = 1.0;
+        let plain = split_as(t, &cuts, step, Quality::Plain).expect("plain");
+        assert!(
+            longest_edge(&plain) > 3.0 * step as f32,
+            "the lines alone fan out"
+        );
+        let pieces = split_as(t, &cuts, step, Quality::Lattice).expect("lattice");
+        let longest = longest_edge(&pieces);
+        assert!(longest <= 3.0 * step as f32, "longest edge {longest}");
+        let n = triangle_cross(&t);
+        let total: f64 = pieces.iter().map(|p| triangle_area(&p.verts) as f64).sum();
+        assert!((total - triangle_area(&t) as f64).abs() < 1e-4, "{total}");
+        assert!(pieces.iter().all(|p| triangle_cross(&p.verts).dot(n) > 0.0));
+        // The footprint is a region of its own, of its own area.
+        let inside = |p: &Piece| {
+            let c = (p.verts[0] + p.verts[1] + p.verts[2]) / 3.0;
+            (0.5..0.8).contains(&c.x) && (-0.8..-0.5).contains(&c.z)
+        };
+        let region = pieces.iter().find(|p| inside(p)).expect("under").region;
+        let under: f64 = pieces
+            .iter()
+            .filter(|p| p.region == region)
+            .map(|p| triangle_area(&p.verts) as f64)
+            .sum();
+        assert!((under - 0.09).abs() < 1e-6, "{under}");
+    }
+
+    #[test]
+    fn lattice_points_keep_clear_of_the_lines_and_the_edges() {
+        let c = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(6.0, 0.0),
+            DVec2::new(0.0, 6.0),
+        ];
+        let segment = [DVec2::new(1.0, 1.0), DVec2::new(3.0, 1.5)];
+        let points = lattice(c, 0.5, &[segment]);
+        assert!(!points.is_empty());
+        let distance = |p: DVec2, [a, b]: [DVec2; 2]| {
+            let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            (a + (b - a) * t - p).length()
+        };
+        for p in &points {
+            assert!(p.x > 0.0 && p.y > 0.0 && p.x + p.y < 6.0, "{p} outside");
+            for line in [segment, [c[0], c[1]], [c[1], c[2]], [c[2], c[0]]] {
+                assert!(
+                    distance(*p, line) >= 0.125 - 1e-9,
+                    "{p} within a quarter step"
+                );
+            }
+        }
+        // Every point of the triangle away from the lines has a lattice point within a
+        // step (none of the lattice is missing).
+        let probe = DVec2::new(4.0, 0.9);
+        assert!(points.iter().any(|p| (*p - probe).length() <= 0.5));
     }
 }
