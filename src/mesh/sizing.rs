@@ -117,6 +117,17 @@ pub(super) fn source_sides(s: &Source) -> usize {
     if s.double_sided { 2 } else { 1 }
 }
 
+/// The fewest elements beyond one per patch side that the default budget leaves to the
+/// scene's larger surfaces. Without them, where the labels lying on NegativeScaleTest's
+/// background cut it into more pieces than its input triangles' budget, every triangle
+/// became one element and the element size that of the largest triangle, 9.6 m, so the
+/// hierarchy's smallest element (an eighth of it) was 1.2 m, and the background under
+/// its 1 m labels, dark in the path-traced truth (0.04 W/m²), showed the light around them
+/// (0.46). Half the default mesh: no scene of `../shared/scenes` but that one comes within
+/// it of its budget (the closest, StainedGlassLamp, leaves 3,640), so their meshes do not
+/// change.
+const SPARE_ELEMENTS: usize = DEFAULT_ELEMENTS / 2;
+
 /// The element budget when none is given: [`DEFAULT_ELEMENTS`], or half as many elements
 /// again as there are patch sides for large scenes, so their biggest triangles (floors,
 /// walls) are still subdivided.
@@ -141,12 +152,17 @@ pub(super) fn choose_element_size(
     if sources.is_empty() || total_area <= 0.0 {
         return Ok(1.0);
     }
-    // The coarsest mesh has one element per patch side; no budget can go below it.
+    // The coarsest mesh has one element per patch side; no budget can go below it. The
+    // default budget (the input triangles', see `build`) can be used up by the pieces
+    // the contact lines cut: the surfaces left whole then still get at least
+    // [`SPARE_ELEMENTS`] more.
     let coarsest = sides(sources);
-    let budget = settings
-        .max_elements
-        .unwrap_or(default.unwrap_or(default_budget(coarsest)))
-        .max(coarsest);
+    let budget = match settings.max_elements {
+        Some(given) => given.max(coarsest),
+        None => default
+            .unwrap_or(default_budget(coarsest))
+            .max(coarsest + SPARE_ELEMENTS),
+    };
     if budget == coarsest {
         // Every triangle is one patch and one element: the size is that of the largest,
         // by its area or by its length (see `split_patches`).
