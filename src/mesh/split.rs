@@ -535,7 +535,7 @@ mod tests {
         let step = 1.0;
         let plain = split_as(t, &cuts, step, Quality::Plain).expect("plain");
         assert!(
-            longest_edge(&plain) > 3.0 * step as f32,
+            longest_edge(&plain) > (FAN_LENGTH * step) as f32,
             "the lines alone fan out"
         );
         let pieces = split_as(t, &cuts, step, Quality::Lattice).expect("lattice");
