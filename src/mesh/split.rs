@@ -124,10 +124,20 @@ fn split_as(
         }
         // Cut ends are snapped onto the triangle (a point a rounding error outside would
         // grow the triangulation's hull by a sliver) and onto each other (ends of two
-        // segments meeting at a corner of a footprint), within 1e-6 of the triangle's size.
+        // segments meeting at a corner of a footprint), within 1e-6 of the triangle's size
+        // or eight roundings of its f32 coordinates, whichever is larger: the ends are
+        // found in f32, so a small triangle far from the origin has ends a few of its
+        // coordinates' roundings off its edges (NegativeScaleTest's spheres: 8 cm
+        // triangles 3.4 m out, ends 1.1–1.4·10⁻⁷ m off, beyond 1e-6 of the size), and an
+        // end left a hair inside an edge leaves a sliver between it and the edge through
+        // which the regions on either side of its segment join.
         let c = v.map(to2).map(|p| DVec2::new(p.x, p.y));
         let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
-        let snap = 1e-6 * size;
+        let magnitude = verts
+            .iter()
+            .map(|p| p.abs().max_element() as f64)
+            .fold(0.0, f64::max);
+        let snap = (1e-6 * size).max(8.0 * f32::EPSILON as f64 * magnitude);
         let twice_area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
         // Each end placed: its position, vertex and whether it lies on each of the
         // triangle's edges (edge k runs from corner k to corner k + 1).
@@ -285,9 +295,21 @@ fn split_as(
             }
             next += 1;
         }
+        // A face whose corners all lie within `snap` of one of the triangle's edges is a
+        // sliver of the hull along that edge (its points a rounding apart from one
+        // line), not a part of the triangle: dropped.
+        let off_edge = |p: Point2<f64>, k: usize| {
+            let (a, b) = (c[k], c[(k + 1) % 3]);
+            (b - a).perp_dot(DVec2::new(p.x, p.y) - a).abs() / (b - a).length().max(1e-300)
+        };
+        let along_an_edge =
+            |p: [Point2<f64>; 3]| (0..3).any(|k| p.iter().all(|&q| off_edge(q, k) <= snap));
         let mut pieces = Vec::with_capacity(faces.len());
         for (k, f) in faces.iter().enumerate() {
             let p = f.positions();
+            if along_an_edge(p) {
+                continue;
+            }
             let mut t = p.map(to3);
             // spade's faces are counter-clockwise in (u, w), which is the triangle's own
             // orientation (n = u × w); keep it.
@@ -589,5 +611,58 @@ mod tests {
         // step (none of the lattice is missing).
         let probe = DVec2::new(4.0, 0.9);
         assert!(points.iter().any(|p| (*p - probe).length() <= 0.5));
+    }
+
+    /// NegativeScaleTest's sphere triangle 2517 (8 cm across, 3.4 m from the origin),
+    /// cut where it passes through the background (z = −0.15) and a plate (z = −0.10):
+    /// each cut runs from one edge to another, so the triangle falls into three parts.
+    /// The cuts' ends were found in f32 and lie 1.1–1.4·10⁻⁷ m off the edges, beyond
+    /// 1e-6 of the triangle's size; before the ends were snapped within the coordinates'
+    /// rounding, the corner behind the background shared a region with the middle part
+    /// through a sliver between an end and its edge (the display then welded the vertices
+    /// on the cut, and the corner's light, 1.67 W/m², spread to the dark side).
+    #[test]
+    fn cuts_ending_a_rounding_off_the_edges_of_a_far_triangle_separate_three_regions() {
+        let t = [
+            Vec3::new(3.3766818, -1.3071713, -0.11728822),
+            Vec3::new(3.3354087, -1.361805, -0.081228875),
+            Vec3::new(3.3228703, -1.3482795, -0.15638438),
+        ];
+        let behind_background = [
+            Vec3::new(3.331658, -1.3415664, -0.14999992),
+            Vec3::new(3.3239355, -1.3494284, -0.1499999),
+        ];
+        let behind_plate = [
+            Vec3::new(3.3568935, -1.3333653, -0.09999966),
+            Vec3::new(3.332277, -1.3584268, -0.09999965),
+        ];
+        let pieces = split(t, &[behind_background, behind_plate], 0.8).expect("split");
+        let mut regions: Vec<u32> = pieces.iter().map(|p| p.region).collect();
+        regions.sort();
+        regions.dedup();
+        assert_eq!(regions.len(), 3);
+        // Each corner's region has the area of the triangle the cut takes off it
+        // (closed form from the inputs), to f32 rounding of the pieces' areas; all
+        // regions together the triangle's.
+        let area = |v: &[Vec3; 3]| triangle_area(v) as f64;
+        let region_area = |corner: Vec3| {
+            let r = pieces
+                .iter()
+                .find(|p| p.verts.contains(&corner))
+                .expect("corner")
+                .region;
+            pieces
+                .iter()
+                .filter(|p| p.region == r)
+                .map(|p| area(&p.verts))
+                .sum::<f64>()
+        };
+        let cut_off = |corner: Vec3, cut: [Vec3; 2]| area(&[corner, cut[0], cut[1]]);
+        for (corner, cut) in [(t[2], behind_background), (t[1], behind_plate)] {
+            let (got, want) = (region_area(corner), cut_off(corner, cut));
+            assert!((got - want).abs() < 1e-4 * want, "{got} vs {want}");
+        }
+        let total: f64 = pieces.iter().map(|p| area(&p.verts)).sum();
+        assert!((total - area(&t)).abs() < 1e-5 * area(&t), "{total}");
     }
 }
