@@ -410,6 +410,97 @@ fn slope_within(bounds: &[(Vec3, f32, Vec3, Vec3)], preferred: Vec3) -> Vec3 {
     }))
 }
 
+/// The least-squares plane through values at the centroids of the elements around a
+/// vertex, weighted by area, evaluated at the vertex: from the weighted moments of the
+/// centroids' offsets (d1, d2) from the vertex in its tangent plane, `[Σw, Σw·d1, Σw·d2,
+/// Σw·d1², Σw·d1·d2, Σw·d2²]`.
+///
+/// In the principal axes of the centroids' spread about their mean the normal equations
+/// decouple: the slope along axis i is cov(f, x_i)/λ_i, and the value at the vertex is the
+/// mean plus each slope times the vertex's offset d_i from the mean along its axis. An
+/// axis along which the vertex lies more than [`PlaneFit::MAX_LEVERAGE`]^½ standard
+/// deviations of the centroids' spread away (d_i² > 16 λ_i) gets no slope: there the fit
+/// extrapolates its data's noise that many times over. Slivers along an edge have
+/// centroids almost on a line, and the plane across that line then swings with any
+/// difference between them (on Sponza's roof, three elements lit 0.20–0.42 W/m² put the
+/// vertex's plane at −0.34, shown as 0 where the truth is 0.46; d_i²/λ_i = 142 there, 47
+/// at another, against 7.6 for the outer axis at a boundary vertex of a regular grid of
+/// right triangles). Linear light is still reproduced wherever the kept axes span the
+/// plane; with no axis kept, the weighted mean.
+struct PlaneFit {
+    /// The weights' sum.
+    weight: f64,
+    /// The centroids' weighted mean offset from the vertex.
+    mean: [f64; 2],
+    /// Per principal axis: its unit direction and variance, where it is kept.
+    axes: [Option<([f64; 2], f64)>; 2],
+}
+
+impl PlaneFit {
+    /// The most d_i²/λ_i an axis may have and keep its slope (see [`PlaneFit`]): about
+    /// twice a regular grid's boundary vertex (7.6).
+    const MAX_LEVERAGE: f64 = 16.0;
+
+    fn new([s00, s01, s02, s11, s12, s22]: [f64; 6]) -> Option<PlaneFit> {
+        if s00.is_nan() || s00 <= 0.0 {
+            return None;
+        }
+        let mean = [s01 / s00, s02 / s00];
+        let (a, b, c) = (
+            s11 / s00 - mean[0] * mean[0],
+            s12 / s00 - mean[0] * mean[1],
+            s22 / s00 - mean[1] * mean[1],
+        );
+        // Eigenvalues of [[a, b], [b, c]], largest first, and their unit eigenvectors.
+        let half = 0.5 * (a - c);
+        let root = (half * half + b * b).sqrt();
+        let lambdas = [0.5 * (a + c) + root, 0.5 * (a + c) - root];
+        let first = if root == 0.0 {
+            [1.0, 0.0]
+        } else if half >= 0.0 {
+            let v = [half + root, b];
+            let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
+            [v[0] / n, v[1] / n]
+        } else {
+            let v = [b, root - half];
+            let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
+            [v[0] / n, v[1] / n]
+        };
+        let dirs = [first, [-first[1], first[0]]];
+        // Below this a variance is rounding (the offsets are f32).
+        let floor = 1e-10 * lambdas[0].max(0.0);
+        let axes = std::array::from_fn(|i| {
+            let (e, lambda) = (dirs[i], lambdas[i]);
+            let d = -(e[0] * mean[0] + e[1] * mean[1]);
+            (lambda > floor && d * d <= Self::MAX_LEVERAGE * lambda).then_some((e, lambda))
+        });
+        Some(PlaneFit {
+            weight: s00,
+            mean,
+            axes,
+        })
+    }
+
+    /// The plane's value at the vertex and its slopes along the tangent axes, from the
+    /// weighted sums of the values `[Σw·f, Σw·f·d1, Σw·f·d2]`.
+    fn at_vertex(&self, [r0, r1, r2]: [f64; 3]) -> [f64; 3] {
+        let f = r0 / self.weight;
+        let cov = [
+            r1 / self.weight - f * self.mean[0],
+            r2 / self.weight - f * self.mean[1],
+        ];
+        let mut out = [f, 0.0, 0.0];
+        for (e, lambda) in self.axes.iter().flatten() {
+            let slope = (e[0] * cov[0] + e[1] * cov[1]) / lambda;
+            let d = -(e[0] * self.mean[0] + e[1] * self.mean[1]);
+            out[0] += slope * d;
+            out[1] += slope * e[0];
+            out[2] += slope * e[1];
+        }
+        out
+    }
+}
+
 fn along(g: &[Vec3; 3], d: Vec3) -> Vec3 {
     Vec3::new(g[0].dot(d), g[1].dot(d), g[2].dot(d))
 }
@@ -426,8 +517,9 @@ impl DisplayMesh {
     /// values also where the colour varies within that range) and extrapolates at a
     /// surface's boundary instead of flattening it. Fitted channel by
     /// channel, a small channel's plane could reach 0 at a boundary where the others stay
-    /// lit: under Sponza's cornice blue did, and the wall showed yellow there. Where the
-    /// elements around a vertex do not span two directions, the mean and no slope. On a
+    /// lit: under Sponza's cornice blue did, and the wall showed yellow there. Along a
+    /// direction in which the elements' centroids barely spread, seen from the vertex, no
+    /// slope ([`PlaneFit`]); where they spread in neither, the mean. On a
     /// hard shadow edge, the mean of the elements on the vertex's side and no slope (see
     /// [`ShadowSides`]). The range of the values around each vertex comes with them.
     fn fit(&self, elements: &[Element], values: &[Vec3]) -> Fit {
@@ -463,10 +555,9 @@ impl DisplayMesh {
             .collect();
         // The area-weighted least-squares plane of each channel through the centroids'
         // values of the elements around the vertex, f_e ≈ a + g · (c_e − p_v) in the
-        // vertex's tangent plane (a 3×3 normal system), evaluated at the vertex; the
-        // luminance's plane is the same weighted sum of the channels' (least squares is
-        // linear in the data). Where the elements around it do not span two directions (a
-        // lone corner), the area-weighted mean and no slope.
+        // vertex's tangent plane, evaluated at the vertex (see `PlaneFit`: no slope along a
+        // direction the centroids barely spread in); the luminance's plane is the same
+        // weighted sum of the channels' (least squares is linear in the data).
         let mut m = vec![[0.0f64; 6]; nv]; // s00 s01 s02 s11 s12 s22
         let mut r = vec![[[0.0f64; 3]; 3]; nv];
         let basis: Vec<(Vec3, Vec3)> = self.normals.iter().map(|n| orthonormal_basis(*n)).collect();
@@ -505,27 +596,10 @@ impl DisplayMesh {
                 // beside it (to black, where noisy values tilt it): the side's mean, flat.
                 continue;
             }
-            let [s00, s01, s02, s11, s12, s22] = m[k];
-            // Cofactors of the symmetric matrix.
-            let c00 = s11 * s22 - s12 * s12;
-            let c01 = s02 * s12 - s01 * s22;
-            let c02 = s01 * s12 - s02 * s11;
-            let c11 = s00 * s22 - s02 * s02;
-            let c12 = s01 * s02 - s00 * s12;
-            let c22 = s00 * s11 - s01 * s01;
-            let det = s00 * c00 + s01 * c01 + s02 * c02;
-            let scale = s00 * (s11 * s22).max(1e-300);
-            if det.is_nan() || det <= 1e-9 * scale {
+            let Some(plane) = PlaneFit::new(m[k]) else {
                 continue;
-            }
-            // The plane's value at the vertex and its slopes along t1 and t2.
-            let plane = |[r0, r1, r2]: [f64; 3]| {
-                [
-                    (c00 * r0 + c01 * r1 + c02 * r2) / det,
-                    (c01 * r0 + c11 * r1 + c12 * r2) / det,
-                    (c02 * r0 + c12 * r1 + c22 * r2) / det,
-                ]
             };
+            let plane = |data: [f64; 3]| plane.at_vertex(data);
             let channels = r[k].map(plane);
             let lum = plane(std::array::from_fn(|j| {
                 (0..3).map(|ch| LUMINANCE[ch] as f64 * r[k][ch][j]).sum()
@@ -824,5 +898,79 @@ impl DisplayMesh {
             c3000, c0300, c0030, c2100, c2010, c1200, c0210, c1020, c0120, c2001, c0201, c0021,
             c1101, c1011, c0111, c1002, c0102, c0012, c0003,
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PlaneFit;
+
+    /// The moments and value sums `PlaneFit` takes, from centroid offsets (in the tangent
+    /// plane, from the vertex), weights and values.
+    fn sums(points: &[([f64; 2], f64, f64)]) -> ([f64; 6], [f64; 3]) {
+        let (mut m, mut r) = ([0.0; 6], [0.0; 3]);
+        for &([x, y], w, f) in points {
+            m = [
+                m[0] + w,
+                m[1] + w * x,
+                m[2] + w * y,
+                m[3] + w * x * x,
+                m[4] + w * x * y,
+                m[5] + w * y * y,
+            ];
+            r = [r[0] + w * f, r[1] + w * f * x, r[2] + w * f * y];
+        }
+        (m, r)
+    }
+
+    /// At a boundary vertex of a regular grid of right triangles (three elements on one
+    /// side of it), a linear light is reproduced exactly: value and both slopes.
+    #[test]
+    fn a_linear_light_is_reproduced_at_a_boundary_vertex() {
+        let light = |[x, y]: [f64; 2]| 0.4 + 0.3 * x - 0.2 * y;
+        let centroids = [
+            [1.0 / 3.0, 1.0 / 3.0],
+            [-1.0 / 3.0, 2.0 / 3.0],
+            [-2.0 / 3.0, 1.0 / 3.0],
+        ];
+        let points: Vec<_> = centroids.iter().map(|&c| (c, 0.5, light(c))).collect();
+        let (m, r) = sums(&points);
+        let [value, gx, gy] = PlaneFit::new(m).expect("fit").at_vertex(r);
+        for (got, want) in [(value, 0.4), (gx, 0.3), (gy, -0.2)] {
+            assert!((got - want).abs() < 1e-12, "{got} vs {want}");
+        }
+    }
+
+    /// Slivers: centroids 0.2–0.4 m from the vertex along the edge and 6 cm beside it,
+    /// within 8 mm of each other across it (Sponza's roof had such), under a light that
+    /// rises along the edge (truth at the vertex: 0.5), one value 0.05 low (the noise of a
+    /// few shadow rays). The full plane reads that 0.05 across millimetres as a slope of
+    /// −8 per metre and puts the vertex at 0.95; with no slope across (d²/λ = 408 there),
+    /// the vertex is off by no more than the noise.
+    #[test]
+    fn slivers_along_an_edge_do_not_tilt_the_plane_across_it() {
+        let light = |[x, _]: [f64; 2]| 0.5 + 0.5 * x;
+        let centroids = [[-0.4, 0.06], [-0.38, 0.066], [-0.2, 0.058]];
+        let noise = [0.0, -0.05, 0.0];
+        let points: Vec<_> = centroids
+            .iter()
+            .zip(noise)
+            .map(|(&c, n)| (c, 1.0, light(c) + n))
+            .collect();
+        let (m, r) = sums(&points);
+        let [value, _, _] = PlaneFit::new(m).expect("fit").at_vertex(r);
+        assert!((value - 0.5).abs() <= 0.05, "{value}");
+        // The full least-squares plane, through the three points exactly, is far off at
+        // the vertex (so the test can fail): its value a + b·0 + c·0, by Cramer's rule.
+        let [(p, _, f), (q, _, g), (t, _, h)] = [points[0], points[1], points[2]];
+        let det3 = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+        };
+        let rows = [[1.0, p[0], p[1]], [1.0, q[0], q[1]], [1.0, t[0], t[1]]];
+        let with_values = [[f, p[0], p[1]], [g, q[0], q[1]], [h, t[0], t[1]]];
+        let through_all =
+            det3(with_values[0], with_values[1], with_values[2]) / det3(rows[0], rows[1], rows[2]);
+        assert!((through_all - 0.5).abs() > 0.3, "{through_all}");
     }
 }
