@@ -432,8 +432,19 @@ struct PlaneFit {
     weight: f64,
     /// The centroids' weighted mean offset from the vertex.
     mean: [f64; 2],
-    /// Per principal axis: its unit direction and variance, where it is kept.
-    axes: [Option<([f64; 2], f64)>; 2],
+    /// The principal axes that keep their slope.
+    axes: [Option<Axis>; 2],
+}
+
+/// A principal axis of the centroids' spread (see [`PlaneFit`]).
+#[derive(Clone, Copy)]
+struct Axis {
+    /// Unit direction in the tangent plane.
+    direction: [f64; 2],
+    /// The centroids' weighted variance along it, λ.
+    variance: f64,
+    /// The vertex's offset from the centroids' mean along it, d.
+    offset: f64,
 }
 
 impl PlaneFit {
@@ -455,24 +466,27 @@ impl PlaneFit {
         let half = 0.5 * (a - c);
         let root = (half * half + b * b).sqrt();
         let lambdas = [0.5 * (a + c) + root, 0.5 * (a + c) - root];
-        let first = if root == 0.0 {
+        // Of the two forms of the first eigenvector, the one away from zero.
+        let v = if root == 0.0 {
             [1.0, 0.0]
         } else if half >= 0.0 {
-            let v = [half + root, b];
-            let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-            [v[0] / n, v[1] / n]
+            [half + root, b]
         } else {
-            let v = [b, root - half];
-            let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
-            [v[0] / n, v[1] / n]
+            [b, root - half]
         };
-        let dirs = [first, [-first[1], first[0]]];
+        let n = (v[0] * v[0] + v[1] * v[1]).sqrt();
+        let first = [v[0] / n, v[1] / n];
+        let directions = [first, [-first[1], first[0]]];
         // Below this a variance is rounding (the offsets are f32).
         let floor = 1e-10 * lambdas[0].max(0.0);
         let axes = std::array::from_fn(|i| {
-            let (e, lambda) = (dirs[i], lambdas[i]);
-            let d = -(e[0] * mean[0] + e[1] * mean[1]);
-            (lambda > floor && d * d <= Self::MAX_LEVERAGE * lambda).then_some((e, lambda))
+            let (direction, variance) = (directions[i], lambdas[i]);
+            let offset = -(direction[0] * mean[0] + direction[1] * mean[1]);
+            (variance > floor && offset * offset <= Self::MAX_LEVERAGE * variance).then_some(Axis {
+                direction,
+                variance,
+                offset,
+            })
         });
         Some(PlaneFit {
             weight: s00,
@@ -490,10 +504,10 @@ impl PlaneFit {
             r2 / self.weight - f * self.mean[1],
         ];
         let mut out = [f, 0.0, 0.0];
-        for (e, lambda) in self.axes.iter().flatten() {
-            let slope = (e[0] * cov[0] + e[1] * cov[1]) / lambda;
-            let d = -(e[0] * self.mean[0] + e[1] * self.mean[1]);
-            out[0] += slope * d;
+        for axis in self.axes.iter().flatten() {
+            let e = axis.direction;
+            let slope = (e[0] * cov[0] + e[1] * cov[1]) / axis.variance;
+            out[0] += slope * axis.offset;
             out[1] += slope * e[0];
             out[2] += slope * e[1];
         }
