@@ -343,8 +343,9 @@ pub(super) struct Hierarchy {
     /// Per node, the range of the external light's irradiance over it (see [`external`]),
     /// NaN until a refinement round asks for it.
     node_external_range: Vec<f32>,
-    /// Leaves that may not split below the minimum size for a contact: their split would
-    /// have made some element too narrow for balance (see `Solver::split_leaves`).
+    /// Leaves that may not split below the minimum size, for a contact or along their
+    /// length: their split would have made some element too narrow for balance (see
+    /// `Solver::split_leaves`).
     ungraded: std::collections::HashSet<u32>,
     cluster_b: Vec<Vec3>,
     /// What each cluster's surfaces send by direction: see [`Facing`].
