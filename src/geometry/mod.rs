@@ -78,13 +78,18 @@ impl Frame {
     }
 }
 
+/// The length of triangle `t`'s longest edge.
+pub fn longest_edge(t: &Triangle) -> f32 {
+    (0..3)
+        .map(|k| t[k].distance(t[(k + 1) % 3]))
+        .fold(0.0, f32::max)
+}
+
 /// The shortest altitude of triangle `t`: twice its area over its longest edge (how wide
 /// it is across; a sliver's is far below `sqrt(2 · area)`).
 pub fn shortest_altitude(t: &Triangle) -> f32 {
     let twice_area = (t[1] - t[0]).cross(t[2] - t[0]).length();
-    let longest = (0..3)
-        .map(|k| t[k].distance(t[(k + 1) % 3]))
-        .fold(0.0, f32::max);
+    let longest = longest_edge(t);
     if longest > 0.0 {
         twice_area / longest
     } else {

@@ -34,7 +34,7 @@ use super::table::LinkTable;
 use super::transfer::{self, Sample, Shape};
 use super::{Hierarchy, Link, NONE, NodeId};
 use crate::cancel::check;
-use crate::geometry::{MIDDLE_CHILD, closest_point_on_triangle, shortest_altitude};
+use crate::geometry::{MIDDLE_CHILD, closest_point_on_triangle, longest_edge, shortest_altitude};
 use crate::mesh::Mesh;
 use crate::solver::refine::split_children;
 use crate::solver::types::{MAX_LINK_BUDGET, Stop};
@@ -801,10 +801,7 @@ fn can_split(area: f32, min_size: f64) -> bool {
 /// brought three floor points in the blocks' umbrae beside the walls from 6–13 % off to
 /// under 1.5 %.
 fn can_split_along(verts: &[Vec3; 3], min_size: f64) -> bool {
-    let longest = (0..3)
-        .map(|k| verts[k].distance(verts[(k + 1) % 3]))
-        .fold(0.0, f32::max);
-    longest as f64 * 0.5 >= min_size * 0.999
+    longest_edge(verts) as f64 * 0.5 >= min_size * 0.999
 }
 
 impl Solver {
